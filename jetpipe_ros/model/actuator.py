@@ -1,0 +1,170 @@
+"""The actuator model assembled: parameters compiled for the kernel, state, and simulation.
+
+:class:`Actuator` holds one actuator's state and advances it sample by sample (the ROS node) or
+over a whole command sequence (the batch simulator, identification and diagnosis), always through
+the same compiled kernel.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from jetpipe_ros.model import kernel
+from jetpipe_ros.model.flow import P_SUPPLY_NOMINAL
+from jetpipe_ros.model.params import ModelParams
+from jetpipe_ros.model.valve import discretise_valve
+
+
+def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
+    """Compile validated parameters (nominal values plus enabled effects) for the kernel."""
+
+    def effect(name: str, key: str, off: float) -> float:
+        return p[f"effects.{name}.{key}"] if p[f"effects.{name}.enabled"] else off
+
+    dt = p["integration.sample_time"]
+    substeps = p["integration.substeps"]
+    h = dt / substeps
+    lag_hz = effect("valve_lag", "corner_frequency", 0.0)
+    valve = discretise_valve(p, h, extra_lag_hz=lag_hz or None,
+                             extra_delay=effect("valve_delay", "delay", 0.0))
+    planes = np.array([[p[f"friction.{phase}.{q}"] for q in
+                        ("breakaway", "stribeck_velocity", "viscous", "coulomb")]
+                       for phase in ("entry", "exit")], dtype=float)
+    noise = p["sensors.noise"]
+    return kernel.Constants(
+        dt=dt, substeps=substeps, u_limit=p["valve.command_limit"],
+        valve_a=valve.a, valve_b=valve.b, valve_c=valve.c, valve_d=valve.d,
+        delay_steps=valve.delay_steps,
+        hysteresis=effect("valve_hysteresis", "half_width", 0.0),
+        flow_coef=np.array(p["flow.coefficients"], dtype=float),
+        p_supply=effect("supply_pressure", "pressure", P_SUPPLY_NOMINAL),
+        leak_cross=effect("leakage", "cross_coefficient", 0.0),
+        leak_atm=effect("leakage", "atmosphere_coefficient", 0.0),
+        polytropic=effect("thermal", "polytropic_index", 1.0),
+        rt=p["chamber.gas_constant"] * p["chamber.temperature"],
+        area=p["chamber.piston_area"], v01=p["chamber.dead_volume_1"],
+        v02=p["chamber.dead_volume_2"],
+        mass=effect("moving_mass", "mass", p["mechanics.mass"]),
+        y_max=0.5 * p["mechanics.stroke"], locked=p["mechanics.locked"], planes=planes,
+        lugre=bool(p["effects.friction_dynamics.enabled"]),
+        sigma0=p["effects.friction_dynamics.bristle_stiffness"],
+        sigma1=p["effects.friction_dynamics.bristle_damping"],
+        sensor_tau=effect("sensor_dynamics", "time_constant", 0.0),
+        sensor_bias=effect("sensor_dynamics", "bias", 0.0),
+        sensor_drift=effect("sensor_dynamics", "drift", 0.0),
+        sigma_p=p["sensors.pressure_sigma"] if noise else 0.0,
+        sigma_y=p["sensors.position_sigma"] if noise else 0.0,
+    )
+
+
+@dataclass
+class Trace:
+    """A simulated run sampled at the model's sample time; each field an array [SI units]."""
+
+    t: np.ndarray  #: time [s]
+    u: np.ndarray  #: applied (clipped) valve command [V]
+    y: np.ndarray  #: piston position [m]
+    v: np.ndarray  #: piston velocity [m/s]
+    p1: np.ndarray  #: chamber 1 pressure [Pa, absolute]
+    p2: np.ndarray  #: chamber 2 pressure [Pa, absolute]
+    friction: np.ndarray  #: friction force F_f [N]
+    force: np.ndarray  #: net pneumatic force S (p1 - p2) [N]
+    u_eq: np.ndarray  #: equivalent valve voltage seen by the flow map [V]
+    y_meas: np.ndarray  #: measured position [m]
+    p1_meas: np.ndarray  #: measured chamber 1 pressure [Pa]
+    p2_meas: np.ndarray  #: measured chamber 2 pressure [Pa]
+
+    @classmethod
+    def from_rows(cls, rows: np.ndarray) -> Trace:
+        """Build from an (n, N_OUT) array of kernel outputs."""
+        return cls(*(np.ascontiguousarray(rows[:, i]) for i in range(kernel.N_OUT)))
+
+
+class Actuator:
+    """One simulated actuator: compiled parameters, integration state and sensor noise.
+
+    Args:
+        params: validated model parameters (nominal values plus effects).
+    """
+
+    def __init__(self, params: ModelParams | None = None) -> None:
+        self.params = params if params is not None else ModelParams()
+        self.constants = build_constants(self.params)
+        self._rng = np.random.default_rng(self.params["sensors.seed"])
+        self._one_u = np.zeros(1)
+        self._one_f = np.zeros(1)
+        self._one_out = np.zeros((1, kernel.N_OUT))
+        self._zero_noise = np.zeros((1, 3))
+        self.reset()
+
+    def reset(self) -> None:
+        """Return to the initial state: at rest, valve at rest, pressures as configured."""
+        c = self.constants
+        x = np.zeros(kernel.VALVE + c.valve_b.shape[0])
+        p = self.params
+        x[kernel.Y] = min(max(p["mechanics.initial_position"], -c.y_max), c.y_max)
+        x[kernel.P1] = x[kernel.PS1] = p["chamber.initial_pressure_1"]
+        x[kernel.P2] = x[kernel.PS2] = p["chamber.initial_pressure_2"]
+        x[kernel.STUCK] = 1.0
+        self.state = x
+        self.ring = np.zeros(c.delay_steps + 1)
+
+    @property
+    def time(self) -> float:
+        """Simulated time since the last reset [s]."""
+        return self.state[kernel.STEP] * self.constants.dt
+
+    def _noise(self, n: int) -> np.ndarray:
+        if self.constants.sigma_p == 0.0 and self.constants.sigma_y == 0.0:
+            return self._zero_noise if n == 1 else np.zeros((n, 3))
+        return self._rng.standard_normal((n, 3))
+
+    def outputs(self) -> np.ndarray:
+        """Outputs (N_OUT,) of the current state, with fresh sensor noise."""
+        out = np.zeros(kernel.N_OUT)
+        kernel.measure(self.constants, self.state, self._noise(1)[0], out)
+        return out
+
+    def step(self, u: float, f_load: float = 0.0) -> np.ndarray:
+        """Advance one sample with command ``u`` [V] and load ``f_load`` [N]; return outputs.
+
+        The returned array (N_OUT,) is reused by the next call; copy it to keep it.
+        """
+        self._one_u[0] = u
+        self._one_f[0] = f_load
+        kernel.advance(self.constants, self.state, self.ring, self._one_u, self._one_f,
+                       self._noise(1), self._one_out)
+        return self._one_out[0]
+
+    def run(self, u: np.ndarray, f_load: np.ndarray | float = 0.0) -> np.ndarray:
+        """Advance ``len(u)`` samples; return the (n, N_OUT) outputs at the end of each."""
+        u = np.ascontiguousarray(u, dtype=float)
+        if not np.all(np.isfinite(u)):
+            raise ValueError("valve command contains NaN or infinite values")
+        fl = np.ascontiguousarray(np.broadcast_to(f_load, u.shape), dtype=float)
+        out = np.empty((u.shape[0], kernel.N_OUT))
+        kernel.advance(self.constants, self.state, self.ring, u, fl, self._noise(len(u)), out)
+        return out
+
+
+def simulate(params: ModelParams, u: np.ndarray, f_load: np.ndarray | float = 0.0) -> Trace:
+    """Replay a command sequence sampled at the model's sample time from the initial state.
+
+    Row k of the result is the state at t_k = k dt, before command ``u[k]`` acts; ``u[k]`` is
+    held over [t_k, t_k+1). The result has ``len(u)`` rows.
+    """
+    act = Actuator(params)
+    u = np.asarray(u, dtype=float)
+    if u.ndim != 1 or u.size == 0:
+        raise ValueError("command must be a non-empty 1-D sequence")
+    fl = np.broadcast_to(np.asarray(f_load, dtype=float), u.shape)
+    rows = np.empty((u.size, kernel.N_OUT))
+    rows[0] = act.outputs()
+    if u.size > 1:
+        rows[1:] = act.run(u[:-1], fl[:-1])
+    rows[:, kernel.OUT_U] = np.clip(u, -act.constants.u_limit, act.constants.u_limit)
+    return Trace.from_rows(rows)

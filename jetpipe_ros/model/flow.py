@@ -1,0 +1,54 @@
+"""Mass flow map of the jet-pipe valve, Eq. 8, with the supply and atmosphere limits.
+
+q(u, p) is the paper's fifth-order polynomial in the equivalent voltage u [V] and the chamber
+pressure p [bar], evaluated with p clamped to its identified range [1, 10] bar. The valve vents to
+atmosphere, so a chamber at or below atmospheric pressure has no outflow. A supply pressure other
+than the 10 bar of the identification (supply_pressure effect) maps the chamber pressure affinely
+from [p_atm, p_s] onto [1, 10] bar and scales the flow by (p_s - p_atm) / 9 bar: the jet-pipe's
+pressure recovery is a fixed fraction of the supply-to-atmosphere span.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+#: Atmospheric and identification supply pressures [Pa, absolute].
+P_ATM = 1.0e5
+P_SUPPLY_NOMINAL = 1.0e6
+
+
+@njit(cache=True, error_model="numpy")
+def flow_polynomial(coef: np.ndarray, u: float, p_bar: float) -> float:
+    """Eq. 8: mass flow [kg/s] for voltage ``u`` [V] and pressure ``p_bar`` [bar].
+
+    ``coef`` holds the 21 coefficients in the paper's order (result in g/s).
+    """
+    u2 = u * u
+    u3 = u2 * u
+    u4 = u3 * u
+    p2 = p_bar * p_bar
+    p3 = p2 * p_bar
+    p4 = p3 * p_bar
+    g = (coef[0] + coef[1] * u + coef[2] * p_bar + coef[3] * u2 + coef[4] * u * p_bar
+         + coef[5] * p2 + coef[6] * u3 + coef[7] * u2 * p_bar + coef[8] * u * p2
+         + coef[9] * p3 + coef[10] * u4 + coef[11] * u3 * p_bar + coef[12] * u2 * p2
+         + coef[13] * u * p3 + coef[14] * p4 + coef[15] * u4 * u + coef[16] * u4 * p_bar
+         + coef[17] * u3 * p2 + coef[18] * u2 * p3 + coef[19] * u * p4 + coef[20] * p4 * p_bar)
+    return g * 1e-3
+
+
+@njit(cache=True, error_model="numpy")
+def chamber_inflow(coef: np.ndarray, u: float, p: float, p_supply: float) -> float:
+    """Mass flow [kg/s] into a chamber at pressure ``p`` [Pa] for equivalent voltage ``u`` [V].
+
+    ``p_supply`` [Pa] is the actual supply; at 10 bar this is Eq. 8 with p clamped to [1, 10] bar
+    and no outflow at or below atmospheric pressure.
+    """
+    span = (p_supply - P_ATM) / (P_SUPPLY_NOMINAL - P_ATM)
+    p_map = 1.0 + (p - P_ATM) / span * 1e-5
+    p_map = min(max(p_map, 1.0), 10.0)
+    q = span * flow_polynomial(coef, u, p_map)
+    if q < 0.0 and p <= P_ATM:
+        return 0.0
+    return q

@@ -1,0 +1,352 @@
+"""Parameters of the actuator model: one schema, YAML loading and validation.
+
+Every parameter the simulator understands is declared once in :data:`SPECS` with its type,
+default, unit, range and description. The same schema validates YAML files for the offline tools
+and declares the ROS parameters of ``actuator_sim``, so a name, a unit or a range is never written
+twice. Names are dotted (``effects.valve_lag.corner_frequency``); YAML files may nest them, and may
+use the ROS layout ``actuator_sim: ros__parameters: ...``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from jetpipe_ros.model.errors import ParameterError
+
+NODE_NAME = "actuator_sim"
+
+#: The unmodelled effects of DESIGN.md section 3, with the subsystem each belongs to.
+EFFECTS: dict[str, str] = {
+    "valve_delay": "valve",
+    "valve_lag": "valve",
+    "valve_hysteresis": "valve",
+    "supply_pressure": "valve",
+    "thermal": "chamber",
+    "leakage": "chamber",
+    "friction_dynamics": "mechanics",
+    "moving_mass": "mechanics",
+    "sensor_dynamics": "sensors",
+}
+
+#: Eq. 8 coefficients, in the order of the paper (u in V, p in bar, result in g/s).
+FLOW_COEFFICIENTS = [
+    3.562, 1.233, -2.037, 0.1701, -0.7901, 0.6697, 0.1335, -0.1801, 0.3379, -0.1243,
+    0.01195, -0.01784, 0.03335, -0.0413, 0.008227, -0.007284, -0.0005998, 0.0003319,
+    -0.001838, 0.001729, -0.0001519,
+]
+
+#: Friction planes c0 + c1 p1 + c2 p2 (p in bar), Eq. 20-23 (entry) and Eq. 24-27 (exit).
+FRICTION_PLANES = {
+    "entry": {
+        "breakaway": [-27.31, 12.95, -11.6],
+        "stribeck_velocity": [-0.00752, 0.00097, -0.00122],
+        "viscous": [53.8, 265.2, 450.0],
+        "coulomb": [-15.52, 8.413, -7.028],
+    },
+    "exit": {
+        "breakaway": [26.39, 12.4, -14.43],
+        "stribeck_velocity": [0.00928, 0.00122, -0.00097],
+        "viscous": [-407.6, 325.8, 355.6],
+        "coulomb": [26.16, 8.575, -11.72],
+    },
+}
+FRICTION_UNITS = {"breakaway": "N", "stribeck_velocity": "m/s", "viscous": "N s/m", "coulomb": "N"}
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One parameter: its dotted name, default (which fixes its type), unit and valid range."""
+
+    name: str
+    default: Any
+    description: str
+    unit: str = ""
+    low: float | None = None
+    high: float | None = None
+    choices: tuple[str, ...] | None = None
+    length: int | None = None
+
+    @property
+    def kind(self) -> type:
+        """Python type of the value: bool, int, float, str or list (of floats)."""
+        return type(self.default)
+
+    def describe(self) -> str:
+        """One line for humans: description, unit and range."""
+        unit = f" [{self.unit}]" if self.unit else ""
+        rng = ""
+        if self.low is not None or self.high is not None:
+            rng = f", range [{self.low}, {self.high}]"
+        if self.choices:
+            rng = f", one of {', '.join(self.choices)}"
+        return f"{self.description}{unit}{rng}"
+
+
+def _p(name: str, default: Any, description: str, unit: str = "", low: float | None = None,
+       high: float | None = None, **kw: Any) -> ParamSpec:
+    return ParamSpec(name, default, description, unit, low, high, **kw)
+
+
+_BASE: list[ParamSpec] = [
+    # Servo valve, Sec. 2.1 Table 1, Eq. 9 and the 2 ms delay of Eq. 10.
+    _p("valve.torque_constant", 2.4, "Torque motor constant K_t", "N m/A", 1e-3, 1e3),
+    _p("valve.back_emf_constant", 0.1, "Back-EMF constant K_b", "V s/rad", 1e-4, 10.0),
+    _p("valve.coil_resistance", 193.0, "Control coil resistance R", "ohm", 1.0, 1e4),
+    _p("valve.coil_inductance", 0.016, "Control coil inductance L", "H", 1e-5, 10.0),
+    _p("valve.rotor_inertia", 6.8e-6, "Rotor and jet-pipe moment of inertia J", "kg m^2",
+       1e-9, 1e-2),
+    _p("valve.friction_coefficient", 6e-5, "Rotor friction coefficient K_f", "N m s/rad",
+       0.0, 1.0),
+    _p("valve.magnetic_stiffness", 0.8, "Magnetic stiffness K_s", "N m/rad", 1e-3, 1e3),
+    _p("valve.delay", 0.002, "Valve transport delay (Eq. 10)", "s", 0.0, 0.05),
+    _p("valve.lag_zero", 220.0, "Lead-lag zero of Eq. 9", "rad/s", 1.0, 1e6),
+    _p("valve.lag_pole", 155.0, "Lead-lag pole of Eq. 9", "rad/s", 1.0, 1e6),
+    _p("valve.command_limit", 3.4, "Valve command saturation |u|", "V", 0.1, 10.0),
+    # Mass flow map, Eq. 8.
+    _p("flow.coefficients", list(FLOW_COEFFICIENTS),
+       "Eq. 8 polynomial coefficients (u in V, p in bar, result in g/s), paper order", "",
+       length=21),
+    # Chambers, Sec. 3 and Eq. 13.
+    _p("chamber.gas_constant", 287.0, "Specific gas constant of air r", "J/(kg K)", 100.0, 1000.0),
+    _p("chamber.temperature", 298.15, "Gas temperature T (isothermal)", "K", 200.0, 400.0),
+    _p("chamber.piston_area", 0.005433, "Effective piston area S", "m^2", 1e-5, 1.0),
+    _p("chamber.dead_volume_1", 1.533e-4, "Chamber 1 volume at y = 0", "m^3", 1e-7, 1.0),
+    _p("chamber.dead_volume_2", 1.915e-4, "Chamber 2 volume at y = 0", "m^3", 1e-7, 1.0),
+    _p("chamber.initial_pressure_1", 416480.0, "Initial chamber 1 pressure (absolute)", "Pa",
+       1e4, 1.2e6),
+    _p("chamber.initial_pressure_2", 416480.0, "Initial chamber 2 pressure (absolute)", "Pa",
+       1e4, 1.2e6),
+    # Mechanics, Sec. 4.
+    _p("mechanics.mass", 1.0, "Moving mass M", "kg", 0.01, 100.0),
+    _p("mechanics.stroke", 0.05, "Stroke; end stops at +-stroke/2", "m", 1e-3, 1.0),
+    _p("mechanics.initial_position", 0.0, "Initial piston position y", "m", -0.5, 0.5),
+    _p("mechanics.locked", False, "Piston clamped at its initial position (constant volume)"),
+    # Sensors.
+    _p("sensors.noise", False, "Add Gaussian sensor noise (the paper's sensor accuracies)"),
+    _p("sensors.seed", 0, "Seed of the sensor noise", "", 0, 2**31 - 1),
+    _p("sensors.pressure_sigma", 500.0, "Pressure noise standard deviation", "Pa", 0.0, 1e5),
+    _p("sensors.position_sigma", 1.5e-5, "Position noise standard deviation", "m", 0.0, 1e-2),
+    # Integration.
+    _p("integration.sample_time", 0.001, "Output sample time", "s", 1e-4, 0.01),
+    _p("integration.substeps", 10, "Integration sub-steps per sample", "", 1, 200),
+]
+
+# Friction planes: one 3-vector parameter per phase and quantity.
+for _phase, _planes in FRICTION_PLANES.items():
+    for _qty, _coef in _planes.items():
+        _BASE.append(_p(
+            f"friction.{_phase}.{_qty}", list(_coef),
+            f"{_phase} phase {_qty.replace('_', ' ')} plane c0 + c1 p1 + c2 p2 (p in bar)",
+            FRICTION_UNITS[_qty], length=3))
+
+#: Parameters of each effect (besides ``effects.<name>.enabled``). Typical sizes: DESIGN.md s.3.
+_EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
+    "valve_delay": [_p("delay", 0.002, "Extra transport delay", "s", 0.0, 0.05)],
+    "valve_lag": [_p("corner_frequency", 30.0, "First-order lag corner frequency", "Hz",
+                     0.5, 1000.0)],
+    "valve_hysteresis": [_p("half_width", 0.25, "Hysteresis loop half-width (play operator)",
+                            "V", 0.0, 2.0)],
+    "supply_pressure": [_p("pressure", 8e5, "Supply pressure (absolute)", "Pa", 2e5, 1.2e6)],
+    "thermal": [_p("polytropic_index", 1.2, "Polytropic index n of the chamber gas", "",
+                   1.0, 1.4)],
+    "leakage": [
+        _p("cross_coefficient", 3e-10, "Leak conductance across the piston, chamber 1 to 2",
+           "kg/(s Pa)", 0.0, 1e-7),
+        _p("atmosphere_coefficient", 0.0, "Leak conductance of each chamber to atmosphere",
+           "kg/(s Pa)", 0.0, 1e-7),
+    ],
+    "friction_dynamics": [
+        _p("bristle_stiffness", 1e5, "LuGre bristle stiffness sigma_0", "N/m", 1e2, 1e8),
+        _p("bristle_damping", 0.0, "LuGre bristle damping sigma_1", "N s/m", 0.0, 1e5),
+    ],
+    "moving_mass": [_p("mass", 2.0, "Actual moving mass", "kg", 0.01, 100.0)],
+    "sensor_dynamics": [
+        _p("time_constant", 0.005, "Pressure sensor first-order lag", "s", 0.0, 1.0),
+        _p("bias", 0.0, "Pressure sensor bias", "Pa", -1e5, 1e5),
+        _p("drift", 0.0, "Pressure sensor drift rate", "Pa/s", -1e4, 1e4),
+    ],
+}
+
+for _name, _specs in _EFFECT_PARAMS.items():
+    _BASE.append(_p(f"effects.{_name}.enabled", False, f"Switch on the {_name} effect"))
+    for _s in _specs:
+        _BASE.append(ParamSpec(f"effects.{_name}.{_s.name}", _s.default,
+                               f"{_name}: {_s.description}", _s.unit, _s.low, _s.high))
+
+#: All model parameters by dotted name.
+SPECS: dict[str, ParamSpec] = {s.name: s for s in _BASE}
+
+
+def effect_param_names(effect: str) -> list[str]:
+    """Dotted names of an effect's own parameters (without ``enabled``)."""
+    if effect not in EFFECTS:
+        raise ParameterError(f"unknown effect {effect!r}; known: {', '.join(EFFECTS)}")
+    return [f"effects.{effect}.{s.name}" for s in _EFFECT_PARAMS[effect]]
+
+
+def check_value(spec: ParamSpec, value: Any, where: str = "") -> Any:
+    """Return ``value`` converted to the spec's type, or raise ParameterError naming it."""
+    at = f"{where}: " if where else ""
+    name = spec.name
+    kind = spec.kind
+    if kind is bool:
+        if not isinstance(value, bool):
+            raise ParameterError(f"{at}parameter {name} must be true or false, got {value!r}")
+        return value
+    if kind is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ParameterError(f"{at}parameter {name} must be an integer, got {value!r}")
+        _check_range(spec, float(value), at)
+        return value
+    if kind is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ParameterError(f"{at}parameter {name} must be a number [{spec.unit}], "
+                                 f"got {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise ParameterError(f"{at}parameter {name} must be finite, got {value!r}")
+        _check_range(spec, value, at)
+        return value
+    if kind is str:
+        if not isinstance(value, str) or (spec.choices and value not in spec.choices):
+            raise ParameterError(f"{at}parameter {name} must be one of {spec.choices}, "
+                                 f"got {value!r}")
+        return value
+    # list of floats
+    if not isinstance(value, (list, tuple)) or len(value) != spec.length:
+        raise ParameterError(f"{at}parameter {name} must be a list of {spec.length} numbers, "
+                             f"got {value!r}")
+    out = []
+    for i, item in enumerate(value):
+        if isinstance(item, bool) or not isinstance(item, (int, float)) or not math.isfinite(item):
+            raise ParameterError(f"{at}parameter {name}[{i}] must be a finite number, "
+                                 f"got {item!r}")
+        out.append(float(item))
+    return out
+
+
+def _check_range(spec: ParamSpec, value: float, at: str) -> None:
+    if (spec.low is not None and value < spec.low) or (spec.high is not None and value > spec.high):
+        raise ParameterError(f"{at}parameter {spec.name} = {value:g} {spec.unit} is out of range "
+                             f"[{spec.low:g}, {spec.high:g}]")
+
+
+def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Flatten nested mappings into dotted names: ``{'a': {'b': 1}} -> {'a.b': 1}``."""
+    flat: dict[str, Any] = {}
+    for key, value in tree.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            flat.update(flatten(value, f"{name}."))
+        else:
+            flat[name] = value
+    return flat
+
+
+def _unflatten(flat: Mapping[str, Any]) -> dict[str, Any]:
+    tree: dict[str, Any] = {}
+    for name, value in flat.items():
+        node = tree
+        *parents, leaf = name.split(".")
+        for part in parents:
+            node = node.setdefault(part, {})
+        node[leaf] = value
+    return tree
+
+
+class ModelParams(Mapping[str, Any]):
+    """A complete, validated set of model parameters, read like a dict by dotted name."""
+
+    def __init__(self, overrides: Mapping[str, Any] | None = None, where: str = "") -> None:
+        values = {name: spec.default for name, spec in SPECS.items()}
+        for name, value in (overrides or {}).items():
+            spec = SPECS.get(name)
+            if spec is None:
+                raise ParameterError(_unknown_message(name, where))
+            values[name] = check_value(spec, value, where)
+        self._values = values
+
+    def __getitem__(self, name: str) -> Any:
+        return self._values[name]
+
+    def __iter__(self):  # type: ignore[no-untyped-def]
+        return iter(self._values)
+
+    def __len__(self) -> int:
+        return len(self._values)
+
+    def replace(self, **changes: Any) -> ModelParams:
+        """A copy with some parameters changed; keys use ``__`` for dots (or pass a dict)."""
+        return self.with_values({k.replace("__", "."): v for k, v in changes.items()})
+
+    def with_values(self, changes: Mapping[str, Any]) -> ModelParams:
+        """A copy with the given dotted-name parameters changed (validated)."""
+        merged = {**self._values, **changes}
+        return ModelParams(merged)
+
+    def with_effect(self, effect: str, **params: float) -> ModelParams:
+        """A copy with ``effect`` switched on and its parameters set."""
+        effect_param_names(effect)
+        changes: dict[str, Any] = {f"effects.{effect}.enabled": True}
+        changes.update({f"effects.{effect}.{k}": v for k, v in params.items()})
+        return self.with_values(changes)
+
+    def enabled_effects(self) -> list[str]:
+        """Names of the effects switched on."""
+        return [e for e in EFFECTS if self._values[f"effects.{e}.enabled"]]
+
+    def non_default(self) -> dict[str, Any]:
+        """The parameters that differ from their defaults."""
+        return {k: v for k, v in self._values.items() if v != SPECS[k].default}
+
+    def to_ros_yaml(self, node_name: str = NODE_NAME, only_changed: bool = False) -> str:
+        """YAML text in the ROS params-file layout, loadable by the node and the CLI."""
+        values = self.non_default() if only_changed else dict(self._values)
+        tree = {node_name: {"ros__parameters": _unflatten(values)}}
+        return yaml.safe_dump(tree, sort_keys=False, default_flow_style=None)
+
+
+def _unknown_message(name: str, where: str) -> str:
+    at = f"{where}: " if where else ""
+    parts = name.split(".")
+    if parts[0] == "effects" and len(parts) >= 2 and parts[1] not in EFFECTS:
+        return (f"{at}unknown effect {parts[1]!r} (parameter {name}); "
+                f"known effects: {', '.join(EFFECTS)}")
+    return f"{at}unknown parameter {name!r}"
+
+
+def params_from_tree(tree: Mapping[str, Any], where: str = "",
+                     node_name: str = NODE_NAME, ignore: tuple[str, ...] = ()) -> ModelParams:
+    """Model parameters from a parsed YAML document (ROS layout or plain nesting).
+
+    Top-level names listed in ``ignore`` (e.g. node-only parameters) are skipped.
+    """
+    if not isinstance(tree, Mapping):
+        raise ParameterError(f"{where}: expected a mapping of parameters, got {type(tree).__name__}")
+    if node_name in tree or "/**" in tree:
+        section = tree.get(node_name, tree.get("/**"))
+        if not isinstance(section, Mapping) or "ros__parameters" not in section:
+            raise ParameterError(f"{where}: {node_name} has no ros__parameters section")
+        tree = section["ros__parameters"]
+    flat = {k: v for k, v in flatten(tree).items() if k.split(".")[0] not in ignore
+            and k not in ignore}
+    return ModelParams(flat, where)
+
+
+def load_params(path: str | Path, node_name: str = NODE_NAME,
+                ignore: tuple[str, ...] = ()) -> ModelParams:
+    """Read and validate a parameter YAML file; errors name the file and the parameter."""
+    path = Path(path)
+    try:
+        tree = yaml.safe_load(path.read_text())
+    except OSError as exc:
+        raise ParameterError(f"{path}: cannot read parameter file: {exc.strerror}") from exc
+    except yaml.YAMLError as exc:
+        raise ParameterError(f"{path}: not valid YAML: {exc}") from exc
+    return params_from_tree(tree or {}, str(path), node_name, ignore)

@@ -1,0 +1,102 @@
+"""Jet-pipe servo valve: the linear electro-mechanical chain and the jet-pipe characteristic.
+
+Signal path (DESIGN.md section 2)::
+
+    u [V] -> clip(+-command_limit) -> delay -> G_lag(s) * G_jp(s)/G_jp(0) -> u_f [V]
+          -> (hysteresis effect) -> u_eq = clip(u_f, -2.8, 3.0) [V] -> flow map
+
+G_jp is the third-order torque-motor model of Eq. 4 (Table 1), normalised to unit DC gain so that
+u_f is an equivalent voltage; G_lag is the lead-lag of Eq. 9. The jet-pipe position is the
+midpoint characteristic of Eq. 5 read from voltage to position with the sign flipped, saturated at
++-1 mm; that saturation is what bounds u_eq.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy import signal
+
+#: Eq. 5 breakpoints: jet-pipe position [mm] and midpoint-line voltage [V]. Eq. 5's first and
+#: fourth lines meet 8 mV apart at x = -0.46 mm; the node there takes their mean.
+_X_MM = np.array([-1.0, -0.76, -0.46, 0.46, 0.84, 1.0])
+_U_V = np.array([3.0, -5.475 * 0.24 + 3.0, 0.5 * (1.296 + (-2.9 * -0.46 - 0.03)),
+                 -2.9 * 0.46 - 0.03, -2.0, -2.8])
+
+
+def midpoint_voltage(x_mm: np.ndarray | float) -> np.ndarray:
+    """Eq. 5: voltage [V] of the hysteresis midpoint lines at jet-pipe position ``x_mm`` [mm]."""
+    return np.interp(x_mm, _X_MM, _U_V)
+
+
+def jetpipe_position(u_f: np.ndarray | float) -> np.ndarray:
+    """Jet-pipe position [m] for equivalent voltage ``u_f`` [V]: -h^-1(u_f), saturated at 1 mm.
+
+    The sign flip makes positive voltage give positive position (DESIGN.md section 2).
+    """
+    x_mm = np.interp(u_f, _U_V[::-1], _X_MM[::-1])
+    return -x_mm * 1e-3
+
+
+#: Jet-pipe length r of Table 1 [m]. It scales G_jp only, so it cancels in the unit-DC-gain chain.
+JET_PIPE_LENGTH = 0.0225
+
+#: Bounds of the equivalent voltage seen by the flow map: h(+-1 mm) [V].
+U_EQ_MIN = float(midpoint_voltage(1.0))
+U_EQ_MAX = float(midpoint_voltage(-1.0))
+
+
+def jetpipe_tf(p: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """Eq. 4: numerator and denominator of G_jp(s) = X(s)/U(s) [m/V] from Table 1 parameters."""
+    kt = p["valve.torque_constant"]
+    kb = p["valve.back_emf_constant"]
+    res = p["valve.coil_resistance"]
+    ind = p["valve.coil_inductance"]
+    jr = p["valve.rotor_inertia"]
+    kf = p["valve.friction_coefficient"]
+    ks = p["valve.magnetic_stiffness"]
+    num = np.array([JET_PIPE_LENGTH * kt / (jr * ind)])
+    den = np.array([1.0, kf / jr + res / ind, (res * kf + kb * kt + ks * ind) / (jr * ind),
+                    res * ks / (jr * ind)])
+    return num, den
+
+
+def valve_tf(p: Mapping[str, Any], extra_lag_hz: float | None = None
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Unit-DC-gain valve chain G_lag(s) G_jp(s)/G_jp(0) [V/V], without the delay.
+
+    ``extra_lag_hz`` appends a first-order lag with that corner frequency (valve_lag effect).
+    """
+    num_jp, den_jp = jetpipe_tf(p)
+    num = num_jp * den_jp[-1] / num_jp[-1]
+    wz, wp = p["valve.lag_zero"], p["valve.lag_pole"]
+    num = np.polymul(num, [1.0 / wz, 1.0])
+    den = np.polymul(den_jp, [1.0 / wp, 1.0])
+    if extra_lag_hz is not None:
+        den = np.polymul(den, [1.0 / (2.0 * np.pi * extra_lag_hz), 1.0])
+    return num, den
+
+
+@dataclass(frozen=True)
+class DiscreteValve:
+    """The valve chain discretised exactly (zero-order hold) at the integration sub-step."""
+
+    a: np.ndarray  #: state matrix (n, n)
+    b: np.ndarray  #: input vector (n,)
+    c: np.ndarray  #: output vector (n,)
+    d: float  #: feed-through
+    delay_steps: int  #: total transport delay in sub-steps
+
+
+def discretise_valve(p: Mapping[str, Any], h: float, extra_lag_hz: float | None = None,
+                     extra_delay: float = 0.0) -> DiscreteValve:
+    """Discretise the valve chain at sub-step ``h`` [s]; the delay is rounded to whole sub-steps."""
+    num, den = valve_tf(p, extra_lag_hz)
+    a, b, c, d = signal.tf2ss(num, den)
+    ad, bd, cd, dd, _ = signal.cont2discrete((a, b, c, d), h, method="zoh")
+    delay_steps = int(round((p["valve.delay"] + extra_delay) / h))
+    return DiscreteValve(np.ascontiguousarray(ad), np.ascontiguousarray(bd[:, 0]),
+                         np.ascontiguousarray(cd[0]), float(dd[0, 0]), delay_steps)
