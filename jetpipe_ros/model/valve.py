@@ -21,10 +21,9 @@ import numpy as np
 from scipy import signal
 
 #: Eq. 5 breakpoints: jet-pipe position [mm] and midpoint-line voltage [V]. Eq. 5's first and
-#: fourth lines meet 8 mV apart at x = -0.46 mm; the node there takes their mean.
+#: fourth lines meet 8 mV apart at x = -0.46 mm; the node there keeps the central line exact.
 _X_MM = np.array([-1.0, -0.76, -0.46, 0.46, 0.84, 1.0])
-_U_V = np.array([3.0, -5.475 * 0.24 + 3.0, 0.5 * (1.296 + (-2.9 * -0.46 - 0.03)),
-                 -2.9 * 0.46 - 0.03, -2.0, -2.8])
+_U_V = np.array([3.0, -5.475 * 0.24 + 3.0, -2.9 * -0.46 - 0.03, -2.9 * 0.46 - 0.03, -2.0, -2.8])
 
 
 def midpoint_voltage(x_mm: np.ndarray | float) -> np.ndarray:

@@ -1,0 +1,40 @@
+"""Replay a recorded or designed voltage sequence through the model (``jetpipe simulate``)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from jetpipe_ros.dataset import Experiment, read_experiment, write_experiment
+from jetpipe_ros.model import ModelParams, Trace, simulate
+
+
+def replay(params: ModelParams, exp: Experiment, locked: bool = False) -> Trace:
+    """Simulate ``exp``'s command (and load, if recorded) at the experiment's own sample time."""
+    changes: dict[str, object] = {}
+    if not math.isclose(exp.dt, params["integration.sample_time"], rel_tol=1e-6):
+        changes["integration.sample_time"] = exp.dt
+    if locked:
+        changes["mechanics.locked"] = True
+    if changes:
+        params = params.with_values(changes)
+    f_load = exp.f_load if exp.f_load is not None else 0.0
+    return simulate(params, exp.u, f_load)
+
+
+def replay_csv(params: ModelParams, input_csv: str | Path, out_csv: str | Path,
+               locked: bool = False) -> Trace:
+    """Read ``input_csv`` (columns t, u; optional f_load), simulate, write ``out_csv``.
+
+    The output has the dataset columns ``t,u,y,p1,p2`` (as the sensors would measure them) plus
+    ``v``, ``f_load`` and ``friction``.
+    """
+    exp = read_experiment(input_csv, required=("t", "u"))
+    trace = replay(params, exp, locked)
+    f_load = exp.f_load if exp.f_load is not None else np.zeros_like(exp.t)
+    write_experiment(out_csv, {"t": exp.t, "u": trace.u, "y": trace.y_meas, "p1": trace.p1_meas,
+                               "p2": trace.p2_meas, "v": trace.v, "f_load": f_load,
+                               "friction": trace.friction})
+    return trace

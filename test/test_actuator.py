@@ -1,0 +1,141 @@
+"""The assembled actuator: steady states, the paper's square wave, stick-slip, sub-steps."""
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy import optimize
+
+from jetpipe_ros.model import Actuator, ModelParams, simulate
+from jetpipe_ros.model.flow import flow_polynomial
+from jetpipe_ros.model.friction import friction_parameters
+from jetpipe_ros.model.params import FLOW_COEFFICIENTS
+
+P = ModelParams()
+COEF = np.array(FLOW_COEFFICIENTS)
+STROKE_HALF = 0.025
+
+
+def null_pressure(u):
+    """Pressure [Pa] where q(u, p) = 0."""
+    return 1e5 * optimize.brentq(lambda p: flow_polynomial(COEF, u, p), 1.0, 10.0)
+
+
+@pytest.mark.parametrize("u", [0.29, 1.15, 1.73])
+def test_locked_chambers_settle_where_flow_vanishes(u):
+    trace = simulate(P.with_values({"mechanics.locked": True}), np.full(8000, u))
+    assert trace.p1[-1] == pytest.approx(null_pressure(u), abs=500)
+    assert trace.p2[-1] == pytest.approx(null_pressure(-u), abs=500)
+    assert np.all(trace.y == 0.0)
+
+
+def test_discharging_chamber_stops_at_atmosphere():
+    """At -2.86 V Eq. 8 is negative down to 1 bar; the vent floor stops the chamber there."""
+    trace = simulate(P.with_values({"mechanics.locked": True}), np.full(4000, 2.86))
+    assert trace.p2.min() >= 1e5 - 50.0  # one explicit sub-step may overshoot slightly
+    assert trace.p2[-1] == pytest.approx(1e5, abs=300)
+
+
+def test_free_piston_at_zero_command_stays_at_rest():
+    trace = simulate(P, np.zeros(5000))
+    assert np.all(trace.y == 0.0) and np.all(trace.v == 0.0)
+    assert trace.p1[-1] == pytest.approx(416480, abs=50)
+
+
+def test_square_wave_0p6V_drives_piston_between_end_stops():
+    """Paper Fig. 32: 0.6 V peak at 0.1122 Hz moves the piston from stop to stop."""
+    t = np.arange(0, 2 / 0.1122, 1e-3)
+    u = np.where(np.sin(2 * np.pi * 0.1122 * t) >= 0, 0.6, -0.6)
+    trace = simulate(P, u)
+    half = int(round(1 / 0.1122 / 2 / 1e-3))
+    for k in range(1, 4):
+        seg = trace.y[(k - 1) * half:k * half]
+        target = STROKE_HALF if k % 2 == 1 else -STROKE_HALF
+        assert seg[-1] == pytest.approx(target, abs=1e-9)
+    assert np.all(np.abs(trace.y) <= STROKE_HALF)
+    assert trace.v.max() > 0.02 and trace.v.min() < -0.02
+
+
+def test_positive_command_moves_positive_and_friction_opposes_motion():
+    trace = simulate(P, np.full(1500, 1.0))
+    moving = np.abs(trace.v) > 1e-3
+    assert trace.y[-1] > 0.0
+    assert np.all(np.sign(trace.friction[moving]) == np.sign(trace.v[moving]))
+
+
+def test_breakaway_when_applied_force_exceeds_breakaway_force():
+    """Eq. 15: a slowly charging command holds the piston until |S dp| reaches |F_S|."""
+    trace = simulate(P, np.full(3000, 0.05))
+    first = int(np.argmax(trace.v != 0.0))
+    assert first > 0
+    area = P["chamber.piston_area"]
+    for k, stuck in ((first - 1, True), (first, False)):
+        f_a = area * (trace.p1[k] - trace.p2[k])
+        f_s = friction_parameters(Actuator(P).constants.planes, 1.0, trace.p1[k],
+                                  trace.p2[k])[0]
+        assert (abs(f_a) <= abs(f_s)) == stuck or abs(abs(f_a) - abs(f_s)) < 2.0
+    assert trace.y[first - 1] == 0.0
+
+
+def test_stick_slip_does_not_chatter():
+    """Slow small motion sticks and slips; velocity never flips sign sample to sample and each
+    stuck phase lasts longer than a couple of samples."""
+    t = np.arange(0, 6, 1e-3)
+    trace = simulate(P, 0.25 * np.sin(2 * np.pi * 0.5 * t))
+    v = trace.v
+    assert np.count_nonzero(v[:-1] * v[1:] < 0) == 0
+    stuck = (v == 0.0).astype(int)
+    edges = np.flatnonzero(np.diff(stuck))
+    runs = np.diff(edges)[1::2] if stuck[edges[0] + 1] else np.diff(edges)[::2]
+    assert len(edges) >= 4  # it does stick and slip
+    assert runs.min() >= 3
+
+
+def test_results_do_not_depend_on_substeps():
+    """Halving the sub-step changes position by < 20 um and pressures by < 1000 Pa over 10 s
+    of a rich command (square wave + sine + steps)."""
+    t = np.arange(0, 10, 1e-3)
+    rng = np.random.default_rng(3)
+    u = (0.6 * np.sign(np.sin(2 * np.pi * 0.3 * t)) + 0.4 * np.sin(2 * np.pi * 3 * t)
+         + np.repeat(rng.uniform(-1, 1, 100), 100))
+    coarse = simulate(P, u)
+    fine = simulate(P.with_values({"integration.substeps": 2 * P["integration.substeps"]}), u)
+    assert np.max(np.abs(coarse.y - fine.y)) < 20e-6
+    assert max(np.max(np.abs(coarse.p1 - fine.p1)), np.max(np.abs(coarse.p2 - fine.p2))) < 1000
+
+
+def test_step_by_step_equals_batch():
+    """The node's per-sample stepping and the batch simulator are the same computation."""
+    u = np.sin(np.linspace(0, 20, 500)) * 1.5
+    batch = Actuator(P).run(u)
+    act = Actuator(P)
+    stepped = np.array([act.step(x).copy() for x in u])
+    np.testing.assert_array_equal(batch, stepped)
+
+
+def test_sensor_noise_is_seeded_and_sized():
+    noisy = P.with_values({"sensors.noise": True, "sensors.seed": 7})
+    a = simulate(noisy, np.zeros(4000))
+    b = simulate(noisy, np.zeros(4000))
+    np.testing.assert_array_equal(a.p1_meas, b.p1_meas)
+    assert np.std(a.p1_meas - a.p1) == pytest.approx(500, rel=0.1)
+    assert np.std(a.y_meas - a.y) == pytest.approx(1.5e-5, rel=0.1)
+
+
+commands = st.lists(st.tuples(st.floats(-6, 6), st.floats(-400, 400), st.integers(1, 400)),
+                    min_size=1, max_size=12)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(commands, st.sampled_from([None, "friction_dynamics", "leakage", "thermal",
+                                  "valve_hysteresis", "supply_pressure", "moving_mass"]))
+def test_random_commands_and_loads_stay_physical(segments, effect):
+    u = np.concatenate([np.full(n, v) for v, _, n in segments])
+    f_load = np.concatenate([np.full(n, f) for _, f, n in segments])
+    params = P if effect is None else P.with_values({f"effects.{effect}.enabled": True})
+    trace = simulate(params, u, f_load)
+    for name in ("y", "v", "p1", "p2", "friction"):
+        assert np.all(np.isfinite(getattr(trace, name))), name
+    assert np.all(np.abs(trace.y) <= STROKE_HALF)
+    assert np.all((trace.p1 > 0) & (trace.p2 > 0))
+    assert np.all((trace.p1 < 15e5) & (trace.p2 < 15e5))

@@ -1,0 +1,56 @@
+"""Flow map (Eq. 8) equilibria, the vent floor, supply scaling and chamber volumes (Eq. 13)."""
+
+import numpy as np
+import pytest
+from scipy import optimize
+
+from jetpipe_ros.model.chamber import chamber_volumes, pressure_rates
+from jetpipe_ros.model.flow import chamber_inflow, flow_polynomial
+from jetpipe_ros.model.params import FLOW_COEFFICIENTS
+
+COEF = np.array(FLOW_COEFFICIENTS)
+
+
+@pytest.mark.parametrize(("u", "p_bar"), [(0.0, 4.165), (3.4, 8.70), (-3.4, 1.07)])
+def test_flow_map_equilibrium_pressures(u, p_bar):
+    root = optimize.brentq(lambda p: flow_polynomial(COEF, u, p), 1.0, 10.0)
+    assert root == pytest.approx(p_bar, abs=0.01)
+
+
+def test_no_outflow_at_or_below_atmosphere():
+    assert flow_polynomial(COEF, -3.0, 1.0) < 0  # the fit's flaw at its edge
+    assert chamber_inflow(COEF, -3.0, 1.0e5, 1.0e6) == 0.0
+    assert chamber_inflow(COEF, -3.0, 0.8e5, 1.0e6) == 0.0
+    assert chamber_inflow(COEF, -3.0, 3.0e5, 1.0e6) < 0
+
+
+def test_pressure_clamped_to_identified_range():
+    assert chamber_inflow(COEF, 1.0, 12e5, 1e6) == pytest.approx(flow_polynomial(COEF, 1.0, 10))
+    assert chamber_inflow(COEF, 1.0, 0.5e5, 1e6) == pytest.approx(flow_polynomial(COEF, 1.0, 1))
+
+
+def test_supply_pressure_scales_the_null_pressure():
+    """At 10 bar supply the map is Eq. 8; at 7 bar the null moves to 1 + 3.165 * 6/9 bar."""
+    assert chamber_inflow(COEF, 0.5, 5e5, 1e6) == flow_polynomial(COEF, 0.5, 5.0)
+    root = optimize.brentq(lambda p: chamber_inflow(COEF, 0.0, p, 7e5), 1.1e5, 6.9e5)
+    assert root / 1e5 == pytest.approx(1 + 3.1648 * 6 / 9, abs=0.01)
+
+
+def test_chamber_volumes_eq13():
+    assert chamber_volumes(0.0, 0.005433, 1.533e-4, 1.915e-4) == pytest.approx((1.533e-4,
+                                                                               1.915e-4))
+    v1, v2 = chamber_volumes(0.025, 0.005433, 1.533e-4, 1.915e-4)
+    assert v1 == pytest.approx(0.005433 * 0.025 + 1.533e-4)
+    assert v2 == pytest.approx(-0.005433 * 0.025 + 1.915e-4)
+    assert min(chamber_volumes(-0.025, 0.005433, 1.533e-4, 1.915e-4)) > 0
+
+
+def test_pressure_rates_eq11_eq12():
+    rt = 287.0 * 298.15
+    dp1, dp2 = pressure_rates(1e-3, 0.0, 4e5, 4e5, 0.0, 1.5e-4, 1.9e-4, 0.005433, rt, 1.0)
+    assert dp1 == pytest.approx(rt * 1e-3 / 1.5e-4)
+    assert dp2 == 0.0
+    # Moving in +y compresses chamber 2 and expands chamber 1.
+    dp1, dp2 = pressure_rates(0.0, 0.0, 4e5, 4e5, 0.1, 1.5e-4, 1.9e-4, 0.005433, rt, 1.0)
+    assert dp1 == pytest.approx(-0.005433 * 4e5 * 0.1 / 1.5e-4)
+    assert dp2 == pytest.approx(0.005433 * 4e5 * 0.1 / 1.9e-4)

@@ -1,0 +1,59 @@
+"""Friction: the paper's worked example (Sec. 4.2.3), the fitted regions and Eq. 15."""
+
+import numpy as np
+import pytest
+
+from jetpipe_ros.model.actuator import build_constants
+from jetpipe_ros.model.friction import (friction_parameters, sliding_friction, static_friction,
+                                        stribeck_force)
+from jetpipe_ros.model.params import ModelParams
+
+PLANES = build_constants(ModelParams()).planes
+BAR = 1e5
+
+
+def test_worked_example_entry_phase():
+    f_s, v_s, f_v, f_c = friction_parameters(PLANES, -1.0, 1.0 * BAR, 6.93 * BAR)
+    assert f_s == pytest.approx(-95, abs=1.0)
+    assert v_s == pytest.approx(-0.015, abs=2e-4)
+    assert f_v == pytest.approx(3440, abs=10)
+    assert f_c == pytest.approx(-56, abs=1.0)
+
+
+def test_exit_planes_in_their_region():
+    f_s, v_s, f_v, f_c = friction_parameters(PLANES, 1.0, 6.89 * BAR, 1.0 * BAR)
+    assert f_s == pytest.approx(26.39 + 12.4 * 6.89 - 14.43)
+    assert v_s == pytest.approx(0.00928 + 0.00122 * 6.89 - 0.00097)
+    assert f_v == pytest.approx(-407.6 + 325.8 * 6.89 + 355.6)
+    assert f_c == pytest.approx(26.16 + 8.575 * 6.89 - 11.72)
+
+
+def test_outside_fitted_region_uses_mean_pressure():
+    outside = friction_parameters(PLANES, -1.0, 7.0 * BAR, 3.0 * BAR)
+    mean = friction_parameters(PLANES, -1.0, 5.0 * BAR, 5.0 * BAR)
+    assert outside == pytest.approx(mean)
+
+
+@pytest.mark.parametrize("direction", [-1.0, 1.0])
+def test_parameters_keep_their_physical_side(direction):
+    for p1 in np.linspace(0.5, 11, 12):
+        for p2 in np.linspace(0.5, 11, 12):
+            f_s, v_s, f_v, f_c = friction_parameters(PLANES, direction, p1 * BAR, p2 * BAR)
+            assert direction * f_c >= 1.0
+            assert abs(f_s) >= abs(f_c) and np.sign(f_s) == direction
+            assert direction * v_s >= 1e-4
+            assert f_v >= 0.0
+
+
+def test_stribeck_curve_limits():
+    f_s, v_s, f_v, f_c = friction_parameters(PLANES, -1.0, 1.0 * BAR, 6.93 * BAR)
+    assert stribeck_force(0.0, f_s, v_s, f_c) == pytest.approx(f_s)
+    assert stribeck_force(-1.0, f_s, v_s, f_c) == pytest.approx(f_c)
+    assert sliding_friction(-0.1, f_s, v_s, f_v, f_c) == pytest.approx(
+        f_c + (f_s - f_c) * np.exp(-((0.1 / 0.015) ** 2)) - 0.1 * f_v, rel=1e-2)
+
+
+def test_static_friction_eq15():
+    assert static_friction(30.0, -95.0) == 30.0
+    assert static_friction(-200.0, -95.0) == -95.0
+    assert static_friction(200.0, 60.0) == 60.0
