@@ -1,0 +1,60 @@
+"""Parameter schema: loading, validation errors that name the parameter, ROS YAML round trip."""
+
+import pytest
+
+from jetpipe_ros.model import SPECS, ModelParams, ParameterError, load_params
+
+
+def write(tmp_path, text):
+    path = tmp_path / "p.yaml"
+    path.write_text(text)
+    return path
+
+
+def test_ros_layout_and_plain_nesting_load_the_same(tmp_path):
+    ros = write(tmp_path, "actuator_sim:\n  ros__parameters:\n    effects:\n      valve_lag:\n"
+                          "        enabled: true\n        corner_frequency: 25.0\n")
+    params = load_params(ros)
+    assert params.enabled_effects() == ["valve_lag"]
+    assert params["effects.valve_lag.corner_frequency"] == 25.0
+    plain = write(tmp_path, "effects: {valve_lag: {enabled: true, corner_frequency: 25.0}}\n")
+    assert dict(load_params(plain)) == dict(params)
+
+
+def test_round_trip_through_ros_yaml(tmp_path):
+    params = ModelParams().with_effect("leakage", cross_coefficient=1e-9)
+    path = write(tmp_path, params.to_ros_yaml())
+    assert dict(load_params(path)) == dict(params)
+    changed = write(tmp_path, params.to_ros_yaml(only_changed=True))
+    assert dict(load_params(changed)) == dict(params)
+
+
+@pytest.mark.parametrize(("text", "names"), [
+    ("effects: {valve_wobble: {enabled: true}}", ["valve_wobble", "known effects"]),
+    ("mechanics: {mass: heavy}", ["mechanics.mass", "number"]),
+    ("mechanics: {mass: -1.0}", ["mechanics.mass", "out of range"]),
+    ("sensors: {noise: 1}", ["sensors.noise", "true or false"]),
+    ("friction: {entry: {viscous: [1, 2]}}", ["friction.entry.viscous", "3 numbers"]),
+    ("valve: {coil_resistnce: 190}", ["valve.coil_resistnce", "unknown parameter"]),
+])
+def test_bad_values_name_the_file_and_parameter(tmp_path, text, names):
+    path = write(tmp_path, text)
+    with pytest.raises(ParameterError) as err:
+        load_params(path)
+    message = str(err.value)
+    assert str(path) in message
+    for name in names:
+        assert name in message
+
+
+def test_unreadable_and_invalid_yaml(tmp_path):
+    with pytest.raises(ParameterError, match="cannot read"):
+        load_params(tmp_path / "missing.yaml")
+    with pytest.raises(ParameterError, match="not valid YAML"):
+        load_params(write(tmp_path, "a: [1, 2"))
+
+
+def test_every_spec_has_description_and_valid_default():
+    for spec in SPECS.values():
+        assert spec.description
+        ModelParams({spec.name: spec.default})
