@@ -32,8 +32,8 @@ def main() -> None:
     args = parser.parse_args()
     u = rich_command(args.seconds)
     rows = []
-    for label, changes in [("nominal, 5 sub-steps (default)", {}),
-                           ("nominal, 10 sub-steps", {"integration.substeps": 10}),
+    for label, changes in [("nominal, 4 sub-steps (default)", {}),
+                           ("nominal, 8 sub-steps", {"integration.substeps": 8}),
                            ("LuGre + lag + hysteresis + noise",
                             {"effects.friction_dynamics.enabled": True,
                              "effects.valve_lag.enabled": True,

@@ -134,7 +134,7 @@ _BASE: list[ParamSpec] = [
     _p("sensors.position_sigma", 1.5e-5, "Position noise standard deviation", "m", 0.0, 1e-2),
     # Integration.
     _p("integration.sample_time", 0.001, "Output sample time", "s", 1e-4, 0.01),
-    _p("integration.substeps", 5, "Integration sub-steps per sample", "", 1, 200),
+    _p("integration.substeps", 4, "Integration sub-steps per sample", "", 1, 200),
 ]
 
 # Friction planes: one 3-vector parameter per phase and quantity.
