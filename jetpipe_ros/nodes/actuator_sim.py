@@ -1,0 +1,349 @@
+"""actuator_sim: the jet-pipe actuator model behind the topic contract, one sample per 1 ms.
+
+A thin shell over :class:`jetpipe_ros.model.Actuator`: it loads and validates the parameters,
+holds the latest commands, steps the model and publishes every sample. No physics here.
+
+Time modes (parameter ``time_mode``):
+
+- ``realtime``: a 1 kHz wall-clock timer; each tick steps the model by the samples due since the
+  start (rclpy skips late ticks; the model does not lose time), at most ``max_catch_up`` at a
+  time (a longer backlog is dropped and counted as an overrun). Stamps are the node clock at
+  each sample's nominal time.
+- ``sim``: the node publishes ``/clock`` with the simulated time, stamps with it, sets its own
+  clock from it, and runs ``real_time_factor`` times faster than the wall clock (0: as fast as
+  it can), handling incoming messages between batches of samples.
+
+Run: ``ros2 run jetpipe_ros actuator_sim --ros-args --params-file config/actuator.yaml``
+(or ``python -m jetpipe_ros.nodes.actuator_sim ...``). Exit status 2 on bad parameters.
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import rclpy
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
+from rclpy.time import Time
+from rclpy.time_source import TimeSource
+
+from jetpipe_ros.model import SPECS, Actuator, ModelParams, ParameterError
+from jetpipe_ros.model import kernel as k
+from jetpipe_ros.model.params import NODE_NAME, ParamSpec, check_value
+from jetpipe_ros.nodes import interface
+from jetpipe_ros.nodes.pacing import Pacer
+from jetpipe_ros.nodes.parameters import StartupError, declare, unknown_overrides, value
+
+#: The node's own parameters (the model's are :data:`jetpipe_ros.model.SPECS`).
+NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
+    ParamSpec("time_mode", "realtime",
+              "Time base: wall clock, or simulated time published on /clock",
+              choices=("realtime", "sim")),
+    ParamSpec("real_time_factor", 1.0,
+              "sim mode: simulated seconds per wall second, 0 = as fast as possible", "",
+              0.0, 1000.0),
+    ParamSpec("command_timeout", 0.5,
+              "Command 0 V after this long without a voltage_cmd (simulated time)", "s",
+              1e-3, 3600.0),
+    ParamSpec("frame_id", "actuator", "frame_id of the stamped messages"),
+    ParamSpec("joint_name", "piston", "Name of the joint in joint_states"),
+    ParamSpec("max_catch_up", 50,
+              "Most samples stepped at one timer tick; realtime mode drops a longer backlog",
+              "samples", 1, 1000),
+    ParamSpec("report_period", 10.0, "Period of the step-rate report in the log, 0 = off",
+              "s", 0.0, 3600.0),
+    ParamSpec("executor", "events",
+              "rclpy executor: EventsExecutor (less CPU) or SingleThreadedExecutor",
+              choices=("events", "single")),
+]}
+#: Node parameters that may change at run time; the others, and all model ones, are read-only.
+DYNAMIC = ("real_time_factor", "command_timeout", "report_period")
+
+TICK = 1e-3  #: shortest wall-clock timer period [s]
+SPIN_TIMEOUT = 0.1  #: spin_once timeout [s]; EventsExecutor must never spin without one
+WARN_PERIOD = 1.0  #: throttle of repeated command warnings [s]
+NS = 1_000_000_000
+
+
+class ActuatorSim(Node):
+    """The simulator node; raises :class:`StartupError` on bad parameters."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        params, opts = self._load_parameters()
+        self.opts = opts
+        Actuator(params).step(0.0)  # compile (or load) the kernel before the clock starts
+        self.actuator = Actuator(params)
+        self._dt = self.actuator.constants.dt
+        self._dt_ns = round(self._dt * NS)
+        self._limit = params["valve.command_limit"]
+        self._variance = self.actuator.constants.sigma_p ** 2
+        self._sim = opts["time_mode"] == "sim"
+
+        self._u = 0.0  # held valve command [V]
+        self._f_load = 0.0  # held load force [N]
+        self._last_cmd: float | None = None  # node time of the last valid command [s]
+        self._timed_out = False
+        self._samples = 0  # samples stepped since the start (not reset with the model)
+        self._resets = 0
+
+        self._make_messages()
+        self._pub = {name: interface.publisher(self, name) for name in (
+            "position", "chamber1/pressure", "chamber2/pressure", "friction_force",
+            "joint_states")}
+        if self._sim:
+            self._pub["/clock"] = interface.publisher(self, "/clock")
+            self._take_clock()
+        interface.subscription(self, "voltage_cmd", self._on_voltage)
+        interface.subscription(self, "load_force", self._on_load)
+        self.add_on_set_parameters_callback(self._check_update)
+        self.add_post_set_parameters_callback(self._apply_update)
+
+        now = time.monotonic()
+        self._pacer = Pacer(self._dt, opts["real_time_factor"] if self._sim else 1.0,
+                            opts["max_catch_up"], now)
+        self._stamp0 = 0 if self._sim else self.get_clock().now().nanoseconds
+        self._report_at = (now, 0)
+        self._started = now
+        self.create_timer(max(self._dt, TICK), self._tick,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
+        effects = ", ".join(params.enabled_effects()) or "none"
+        rate = f", real_time_factor {opts['real_time_factor']:g}" if self._sim else ""
+        self.get_logger().info(
+            f"started: time_mode {opts['time_mode']}{rate}, sample time {self._dt * 1e3:g} ms, "
+            f"effects: {effects}, topic contract {interface.share_file(interface.CONTRACT)}")
+
+    # -- start-up ---------------------------------------------------------------------------
+
+    def _load_parameters(self) -> tuple[ModelParams, dict[str, Any]]:
+        """Declare and validate every parameter; raise StartupError listing all problems."""
+        static = [s for s in NODE_SPECS.values() if s.name not in DYNAMIC]
+        errors = declare(self, SPECS.values(), read_only=True)
+        errors += declare(self, static, read_only=True)
+        errors += declare(self, [NODE_SPECS[n] for n in DYNAMIC], read_only=False)
+        for name in unknown_overrides(self, [*SPECS, *NODE_SPECS]):
+            try:
+                ModelParams({name: None})  # names the unknown effect or parameter
+            except ParameterError as exc:
+                errors.append(str(exc))
+        if errors:
+            raise StartupError(errors)
+        try:
+            params = ModelParams({name: value(self, name) for name in SPECS})
+        except ParameterError as exc:
+            raise StartupError([str(exc)]) from exc
+        opts = {name: value(self, name) for name in NODE_SPECS}
+        if value(self, "use_sim_time") and opts["time_mode"] == "realtime":
+            raise StartupError(["parameter use_sim_time is true but time_mode is realtime; "
+                                "use time_mode sim (the simulator then publishes /clock)"])
+        return params, opts
+
+    def _take_clock(self) -> None:
+        """Sim mode: drive this node's ROS clock from the simulated time directly."""
+        if value(self, "use_sim_time"):
+            # Its own /clock would come back late through DDS; the node sets the clock itself.
+            self.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, False)])
+        self._time_source = TimeSource()
+        self._time_source.attach_clock(self.get_clock())
+        self._time_source.ros_time_is_active = True
+        self.get_clock().set_ros_time_override(Time(nanoseconds=0))
+
+    def _make_messages(self) -> None:
+        """Message objects reused for every sample."""
+        from rosgraph_msgs.msg import Clock as ClockMsg
+        from sensor_msgs.msg import FluidPressure, JointState
+        from std_msgs.msg import Float64
+
+        self._msg_position = Float64()
+        self._msg_friction = Float64()
+        self._msg_p = (FluidPressure(), FluidPressure())
+        for m in self._msg_p:
+            m.header.frame_id = self.opts["frame_id"]
+            m.variance = self._variance
+        self._msg_joint = JointState()
+        self._msg_joint.header.frame_id = self.opts["frame_id"]
+        self._msg_joint.name = [self.opts["joint_name"]]
+        self._msg_clock = ClockMsg()
+
+    # -- run-time parameters ----------------------------------------------------------------
+
+    def _check_update(self, params: list[Parameter[Any]]) -> SetParametersResult:
+        for p in params:
+            if p.name == "use_sim_time" and p.value:
+                return SetParametersResult(successful=False, reason=(
+                    "actuator_sim never follows an external /clock; use time_mode sim"))
+            if p.name in DYNAMIC:
+                try:
+                    check_value(NODE_SPECS[p.name], p.value)
+                except ParameterError as exc:
+                    return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _apply_update(self, params: list[Parameter[Any]]) -> None:
+        for p in params:
+            if p.name in DYNAMIC:
+                self.opts[p.name] = p.value
+            if p.name == "real_time_factor" and self._sim:
+                self._pacer.set_rate(p.value, time.monotonic())
+
+    # -- commands ---------------------------------------------------------------------------
+
+    def _on_voltage(self, msg: Any) -> None:
+        u = msg.data
+        if not math.isfinite(u):
+            self.get_logger().warning(
+                f"ignoring non-finite voltage_cmd {u}; holding {self._u:g} V",
+                throttle_duration_sec=WARN_PERIOD)
+            return
+        if abs(u) > self._limit:
+            self.get_logger().warning(
+                f"voltage_cmd {u:g} V beyond valve.command_limit {self._limit:g} V; clipped",
+                throttle_duration_sec=WARN_PERIOD)
+            u = math.copysign(self._limit, u)
+        self._u = u
+        self._last_cmd = self._samples * self._dt
+        self._timed_out = False
+
+    def _on_load(self, msg: Any) -> None:
+        if not math.isfinite(msg.data):
+            self.get_logger().warning(
+                f"ignoring non-finite load_force {msg.data}; holding {self._f_load:g} N",
+                throttle_duration_sec=WARN_PERIOD)
+            return
+        self._f_load = msg.data
+
+    def _command(self, t: float) -> float:
+        """The valve command [V] at node time ``t`` [s], 0 V once the commands stopped."""
+        if (self._last_cmd is not None and not self._timed_out
+                and t - self._last_cmd > self.opts["command_timeout"]):
+            self._timed_out = True
+            self._u = 0.0
+            self.get_logger().warning(
+                f"no voltage_cmd for {self.opts['command_timeout']:g} s; commanding 0 V")
+        return self._u
+
+    # -- stepping ---------------------------------------------------------------------------
+
+    def _tick(self) -> None:
+        n = self._pacer.due(time.monotonic())
+        for _ in range(n):
+            self._step()
+        if n and self._sim:
+            self.get_clock().set_ros_time_override(Time(nanoseconds=self._stamp_ns()))
+        self._maybe_report()
+
+    def _stamp_ns(self) -> int:
+        """Stamp of the latest sample [ns]: simulated time, or the node clock at the sample."""
+        slots = self._samples if self._sim else self._samples + self._pacer.dropped
+        return self._stamp0 + slots * self._dt_ns
+
+    def _step(self) -> None:
+        out = self.actuator.step(self._command(self._samples * self._dt), self._f_load).tolist()
+        self._samples += 1
+        if not all(math.isfinite(out[i]) for i in (
+                k.OUT_Y_MEAS, k.OUT_V, k.OUT_P1_MEAS, k.OUT_P2_MEAS, k.OUT_FRICTION, k.OUT_FORCE)):
+            self._resets += 1
+            self.get_logger().error(
+                f"model state not finite at t = {self._samples * self._dt:.3f} s "
+                f"(u = {self._u:g} V, load {self._f_load:g} N); model reset")
+            self.actuator.reset()
+            return
+        self._publish(out, self._stamp_ns())
+
+    def _publish(self, out: list[float], stamp_ns: int) -> None:
+        sec, nanosec = divmod(stamp_ns, NS)
+        y = out[k.OUT_Y_MEAS]
+        self._msg_position.data = y
+        self._pub["position"].publish(self._msg_position)
+        for msg, index, name in ((self._msg_p[0], k.OUT_P1_MEAS, "chamber1/pressure"),
+                                 (self._msg_p[1], k.OUT_P2_MEAS, "chamber2/pressure")):
+            msg.header.stamp.sec = sec
+            msg.header.stamp.nanosec = nanosec
+            msg.fluid_pressure = out[index]
+            self._pub[name].publish(msg)
+        self._msg_friction.data = out[k.OUT_FRICTION]
+        self._pub["friction_force"].publish(self._msg_friction)
+        joint = self._msg_joint
+        joint.header.stamp.sec = sec
+        joint.header.stamp.nanosec = nanosec
+        joint.position = [y]
+        joint.velocity = [out[k.OUT_V]]
+        joint.effort = [out[k.OUT_FORCE]]
+        self._pub["joint_states"].publish(joint)
+        if self._sim:
+            self._msg_clock.clock.sec = sec
+            self._msg_clock.clock.nanosec = nanosec
+            self._pub["/clock"].publish(self._msg_clock)
+
+    # -- reporting --------------------------------------------------------------------------
+
+    def _maybe_report(self) -> None:
+        period = self.opts["report_period"]
+        if period > 0.0 and time.monotonic() - self._report_at[0] >= period:
+            self.report()
+
+    def report(self, final: bool = False) -> None:
+        """Log the step rate since the last report (or, if ``final``, since the start)."""
+        now = time.monotonic()
+        since, samples = (self._started, 0) if final else self._report_at
+        wall = max(now - since, 1e-9)
+        n = self._samples - samples
+        p = self._pacer
+        self.get_logger().info(
+            f"{'total: ' if final else ''}stepped {n} samples in {wall:.2f} s: "
+            f"{n / wall:.1f} Hz ({n * self._dt / wall:.2f} x real time); "
+            f"overruns {p.overruns} ({p.dropped} samples dropped), model resets {self._resets}")
+        self._report_at = (now, self._samples)
+
+
+def _executor(kind: str) -> Any:
+    return EventsExecutor() if kind == "events" else SingleThreadedExecutor()
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """Run the node until Ctrl-C or SIGTERM; return 0, or 2 on bad parameters."""
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
+    try:
+        # Own signal handling: stop the loop, log the totals, then shut ROS down.
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except Exception as exc:  # rcl refuses the arguments or a params file it cannot parse
+        print(f"{NODE_NAME}: error: cannot initialise ROS: {exc}", file=sys.stderr)
+        return 2
+    node = None
+    try:
+        node = ActuatorSim()
+        executor = _executor(node.opts["executor"])
+        executor.add_node(node)
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=SPIN_TIMEOUT)
+    except StartupError as exc:
+        logger = rclpy.logging.get_logger(NODE_NAME)
+        for message in exc.messages:
+            logger.error(message)
+        logger.error("not started: fix the parameters above")
+        return 2
+    except ExternalShutdownException:
+        pass
+    finally:
+        if node is not None:
+            node.report(final=True)
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

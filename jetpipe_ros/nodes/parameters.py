@@ -1,0 +1,119 @@
+"""Declare a parameter schema (:class:`~jetpipe_ros.model.params.ParamSpec`) on an rclpy node.
+
+Each parameter gets a ``ParameterDescriptor`` with its description, unit and range, so
+``ros2 param describe`` shows them and rclpy refuses out-of-range values. Start-up problems
+(wrong type, out of range, unknown name) are collected, not raised one by one, so a node can
+report every bad parameter of a file at once.
+"""
+
+from __future__ import annotations
+
+import array
+from collections.abc import Iterable
+from typing import Any
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from jetpipe_ros.model.errors import ParameterError
+from jetpipe_ros.model.params import ParamSpec, check_value
+
+
+class StartupError(RuntimeError):
+    """The node cannot start; ``messages`` says why, one line per problem."""
+
+    def __init__(self, messages: list[str]) -> None:
+        super().__init__("; ".join(messages))
+        self.messages = messages
+
+
+def parameter_overrides(node: Node) -> dict[str, Parameter[Any]]:
+    """Values given to this node by ``--params-file`` and ``-p``, by name.
+
+    rclpy (9.1.2) silently ignores overrides nobody declares and has no public call that lists
+    them, so this reads the private ``Node._parameter_overrides``; it is the one place that does.
+    """
+    return dict(node._parameter_overrides)
+
+
+def descriptor(spec: ParamSpec, read_only: bool) -> ParameterDescriptor:
+    """The ROS descriptor of ``spec``: description with unit, range, read-only flag."""
+    desc = ParameterDescriptor(description=spec.describe(), read_only=read_only)
+    if spec.choices:
+        desc.additional_constraints = f"one of: {', '.join(spec.choices)}"
+    if spec.length is not None:
+        desc.additional_constraints = f"exactly {spec.length} numbers"
+    if spec.low is not None and spec.high is not None:
+        if spec.kind is float:
+            desc.floating_point_range = [FloatingPointRange(
+                from_value=float(spec.low), to_value=float(spec.high), step=0.0)]
+        elif spec.kind is int:
+            desc.integer_range = [IntegerRange(
+                from_value=int(spec.low), to_value=int(spec.high), step=0)]
+    return desc
+
+
+def _widened(spec: ParamSpec, value: Any) -> Any:
+    """``value`` as floats when the spec wants floats and YAML gave integers, else None.
+
+    YAML reads ``mass: 2`` as an integer; ROS would refuse it for a double parameter, while the
+    offline tools (``load_params``) accept it. Widening keeps one file valid for both.
+    """
+    if spec.kind is float and type(value) is int:
+        return float(value)
+    if spec.kind is list and isinstance(value, (list, tuple, array.array)) and value \
+            and all(type(v) is int for v in value):
+        return [float(v) for v in value]
+    return None
+
+
+def declare(node: Node, specs: Iterable[ParamSpec], read_only: bool) -> list[str]:
+    """Declare ``specs`` on ``node`` with their overrides; return one message per bad value.
+
+    A value is bad if rclpy refuses it (wrong type, out of range) or the schema does (not one
+    of the choices, wrong list length).
+    """
+    overrides = parameter_overrides(node)
+    errors = []
+    for spec in specs:
+        desc = descriptor(spec, read_only)
+        given = overrides.get(spec.name)
+        widened = _widened(spec, given.value) if given is not None else None
+        shown = f" = {_shown(given.value)}" if given is not None else ""
+        try:
+            if widened is not None:
+                node.declare_parameter(spec.name, widened, desc, ignore_override=True)
+            else:
+                node.declare_parameter(spec.name, spec.default, desc)
+            check_value(spec, value(node, spec.name))
+        except InvalidParameterTypeException:
+            errors.append(f"parameter {spec.name}{shown} has the wrong type: expected "
+                          f"{_KIND_NAMES[spec.kind]}; {spec.describe()}")
+        except InvalidParameterValueException:
+            errors.append(f"parameter {spec.name}{shown} is out of range; {spec.describe()}")
+        except ParameterError as exc:
+            errors.append(str(exc))
+    return errors
+
+
+_KIND_NAMES = {bool: "true or false", int: "an integer", float: "a number", str: "a string",
+               list: "a list of numbers"}
+
+
+def _shown(v: Any) -> str:
+    return repr(list(v) if isinstance(v, array.array) else v)
+
+
+def unknown_overrides(node: Node, known: Iterable[str]) -> list[str]:
+    """Names given to the node that are neither in ``known`` nor declared (typos), sorted."""
+    known = set(known)
+    return sorted(name for name in parameter_overrides(node)
+                  if name not in known and not node.has_parameter(name))
+
+
+def value(node: Node, name: str) -> Any:
+    """A declared parameter's value, with arrays as plain lists."""
+    v = node.get_parameter(name).value
+    return list(v) if isinstance(v, (array.array, tuple)) else v
