@@ -1,0 +1,157 @@
+"""Shared fixtures. ROS tests get a private ROS domain and processes that are always stopped."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="session")
+def ros_domain() -> Iterator[int]:
+    """Isolate this test run's ROS traffic: a domain id of its own, localhost discovery only.
+
+    Set in ``os.environ`` before any ``rclpy.init`` of the run, inherited by subprocesses.
+    """
+    names = ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")
+    saved = {name: os.environ.get(name) for name in names}
+    domain = 1 + os.getpid() % 100  # 1-100; 0 is everybody's default
+    os.environ["ROS_DOMAIN_ID"] = str(domain)
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    yield domain
+    for name, old in saved.items():
+        if old is None:
+            os.environ.pop(name, None)
+        else:
+            os.environ[name] = old
+
+
+class Process:
+    """A child process whose merged stdout/stderr is collected line by line."""
+
+    def __init__(self, argv: list[str], env: dict[str, str] | None = None,
+                 cwd: Path = REPO) -> None:
+        self.argv = argv
+        self.lines: list[str] = []
+        self._changed = threading.Condition()
+        self._eof = False
+        self.popen = subprocess.Popen(argv, cwd=cwd, env=env, stdout=subprocess.PIPE,
+                                      stderr=subprocess.STDOUT, text=True, bufsize=1)
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self) -> None:
+        assert self.popen.stdout is not None
+        for line in self.popen.stdout:
+            with self._changed:
+                self.lines.append(line.rstrip("\n"))
+                self._changed.notify_all()
+        with self._changed:
+            self._eof = True
+            self._changed.notify_all()
+
+    @property
+    def output(self) -> str:
+        """Everything printed so far."""
+        return "\n".join(self.lines)
+
+    def wait_for(self, text: str, timeout: float, start: int = 0) -> str:
+        """The first output line from line ``start`` on containing ``text``.
+
+        Fails the test after ``timeout`` [s] or when the process has ended without it.
+        """
+        deadline = time.monotonic() + timeout
+        with self._changed:
+            while True:
+                for line in self.lines[start:]:
+                    if text in line:
+                        return line
+                left = deadline - time.monotonic()
+                if left <= 0 or self._eof:
+                    pytest.fail(f"{text!r} not printed by {' '.join(self.argv)} within "
+                                f"{timeout} s (exit status {self.popen.poll()}); output:\n"
+                                f"{self.output}")
+                self._changed.wait(left)
+
+    def stop(self, timeout: float = 5.0) -> int:
+        """Terminate (SIGTERM), kill if still alive after ``timeout`` [s]; the exit status."""
+        if self.popen.poll() is None:
+            self.popen.terminate()
+            try:
+                self.popen.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.popen.kill()
+                self.popen.wait()
+        return self.popen.returncode
+
+
+class Launcher:
+    """Starts processes in the test's ROS domain (repo on PYTHONPATH); stops them all."""
+
+    def __init__(self) -> None:
+        self.started: list[Process] = []
+
+    def __call__(self, args: list[str], python: bool = True, cwd: Path = REPO,
+                 env: dict[str, str | None] | None = None) -> Process:
+        """Start ``python args...`` (or ``args`` as is, if ``python`` is false).
+
+        ``env`` adds to the environment; a None value removes that variable.
+        """
+        full_env = dict(os.environ)
+        full_env["PYTHONPATH"] = os.pathsep.join(
+            [str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])])
+        full_env["PYTHONUNBUFFERED"] = "1"
+        for name, value in (env or {}).items():  # None unsets
+            if value is None:
+                full_env.pop(name, None)
+            else:
+                full_env[name] = value
+        proc = Process([sys.executable, *args] if python else args, full_env, cwd)
+        self.started.append(proc)
+        return proc
+
+    def stop_all(self) -> None:
+        for proc in self.started:
+            proc.stop()
+
+
+@pytest.fixture
+def launch(ros_domain: int) -> Iterator[Launcher]:
+    """Start processes for one test; all are stopped at its end."""
+    launcher = Launcher()
+    try:
+        yield launcher
+    finally:
+        launcher.stop_all()
+
+
+@pytest.fixture(scope="module")
+def module_launch(ros_domain: int) -> Iterator[Launcher]:
+    """Start processes shared by a test module; all are stopped at its end."""
+    launcher = Launcher()
+    try:
+        yield launcher
+    finally:
+        launcher.stop_all()
+
+
+@pytest.fixture(scope="module")
+def ros_context(ros_domain: int) -> Iterator[object]:
+    """An initialised rclpy context for this module's test-side nodes."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.signals import SignalHandlerOptions
+
+    context = Context()
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        yield context
+    finally:
+        rclpy.try_shutdown(context=context)
