@@ -110,12 +110,10 @@ class ActuatorSim(Node):
         self.add_on_set_parameters_callback(self._check_update)
         self.add_post_set_parameters_callback(self._apply_update)
 
-        now = time.monotonic()
         self._pacer = Pacer(self._dt, opts["real_time_factor"] if self._sim else 1.0,
-                            opts["max_catch_up"], now)
-        self._stamp0 = 0 if self._sim else self.get_clock().now().nanoseconds
-        self._report_at = (now, 0)
-        self._started = now
+                            opts["max_catch_up"], time.monotonic())
+        self._ticking = False  # the time line restarts at the first tick
+        self._start(time.monotonic())
         self.create_timer(max(self._dt, TICK), self._tick,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
         effects = ", ".join(params.enabled_effects()) or "none"
@@ -235,8 +233,19 @@ class ActuatorSim(Node):
 
     # -- stepping ---------------------------------------------------------------------------
 
+    def _start(self, now: float) -> None:
+        """(Re)start the time line at wall time ``now`` [s, monotonic]."""
+        self._pacer.set_rate(self._pacer.rate, now)
+        self._stamp0 = 0 if self._sim else self.get_clock().now().nanoseconds
+        self._report_at = (now, self._samples)
+        self._started = now
+
     def _tick(self) -> None:
-        n = self._pacer.due(time.monotonic())
+        now = time.monotonic()
+        if not self._ticking:  # not counting the time the node took to get spinning
+            self._start(now)
+            self._ticking = True
+        n = self._pacer.due(now)
         for _ in range(n):
             self._step()
         if n and self._sim:
@@ -302,8 +311,9 @@ class ActuatorSim(Node):
         p = self._pacer
         self.get_logger().info(
             f"{'total: ' if final else ''}stepped {n} samples in {wall:.2f} s: "
-            f"{n / wall:.1f} Hz ({n * self._dt / wall:.2f} x real time); "
-            f"overruns {p.overruns} ({p.dropped} samples dropped), model resets {self._resets}")
+            f"{n / wall:.1f} Hz ({n * self._dt / wall:.2f} x real time); largest catch-up "
+            f"{p.largest} samples, overruns {p.overruns} ({p.dropped} samples dropped), "
+            f"model resets {self._resets}")
         self._report_at = (now, self._samples)
 
 

@@ -30,6 +30,7 @@ class Pacer:
         self.issued = 0  #: samples issued since the start
         self.dropped = 0  #: samples of backlog dropped since the start
         self.overruns = 0  #: ticks at which a backlog was dropped
+        self.largest = 0  #: most samples issued at one tick (1: never behind)
         self._rate = rate
         self._origin = now
         self._base = 0
@@ -62,4 +63,6 @@ class Pacer:
                 n = self.max_batch
         n = max(n, 0)
         self.issued += n
+        if self._rate != 0.0:
+            self.largest = max(self.largest, n)
         return n
