@@ -38,3 +38,29 @@ def replay_csv(params: ModelParams, input_csv: str | Path, out_csv: str | Path,
                                "p2": trace.p2_meas, "v": trace.v, "f_load": f_load,
                                "friction": trace.friction})
     return trace
+
+
+def _run(args) -> int:
+    from jetpipe_ros.model import load_params
+
+    params = load_params(args.params) if args.params else ModelParams()
+    trace = replay_csv(params, args.input, args.out, locked=args.locked)
+    effects = ", ".join(params.enabled_effects()) or "none"
+    print(f"simulated {trace.t[-1]:.3f} s ({trace.t.size} samples, effects: {effects}) "
+          f"-> {args.out}")
+    return 0
+
+
+def add_command(subparsers) -> None:
+    """``jetpipe simulate``: replay a voltage sequence through the model."""
+    sim = subparsers.add_parser(
+        "simulate", help="replay a voltage sequence through the model",
+        description="Replay the u column (and f_load, if present) of a CSV through the model; "
+                    "write t,u,y,p1,p2,v,f_load,friction.")
+    sim.add_argument("--params", help="parameter YAML (ROS params-file layout or plain); "
+                                      "default: the nominal model")
+    sim.add_argument("--input", required=True, help="CSV with columns t [s], u [V]")
+    sim.add_argument("--out", required=True, help="output CSV")
+    sim.add_argument("--locked", action="store_true",
+                     help="clamp the piston (constant-volume test)")
+    sim.set_defaults(func=_run)

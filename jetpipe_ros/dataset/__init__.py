@@ -1,6 +1,8 @@
 """Datasets on disk (DESIGN.md section 5): experiment CSVs and the dataset.yaml index."""
 
+from jetpipe_ros.dataset.dataset import Dataset, Entry, read_dataset, read_index, write_dataset
 from jetpipe_ros.dataset.errors import DatasetError
 from jetpipe_ros.dataset.experiment import Experiment, read_experiment, write_experiment
 
-__all__ = ["DatasetError", "Experiment", "read_experiment", "write_experiment"]
+__all__ = ["Dataset", "DatasetError", "Entry", "Experiment", "read_dataset", "read_experiment",
+           "read_index", "write_dataset", "write_experiment"]
