@@ -35,21 +35,36 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
                         ("breakaway", "stribeck_velocity", "viscous", "coulomb")]
                        for phase in ("entry", "exit")], dtype=float)
     noise = p["sensors.noise"]
+    half_width = effect("valve_hysteresis", "half_width", 0.0)
+    n_play = p["effects.valve_hysteresis.elements"] if half_width > 0.0 else 0
+    # Thresholds spread evenly over (0, 2 half_width), mean half_width; one element: half_width.
+    hysteresis = half_width * (2.0 * np.arange(1, n_play + 1) - 1.0) / max(n_play, 1)
+    thermal = p["effects.thermal.enabled"]
+    heat_transfer = thermal and p["effects.thermal.form"] == "heat_transfer"
+    leakage = p["effects.leakage.enabled"]
+    orifice = leakage and p["effects.leakage.form"] == "orifice"
+    laminar = leakage and not orifice
     return kernel.Constants(
         dt=dt, substeps=substeps, u_limit=p["valve.command_limit"],
         valve_a=valve.a, valve_b=valve.b, valve_c=valve.c, valve_d=valve.d,
         delay_steps=valve.delay_steps,
-        hysteresis=effect("valve_hysteresis", "half_width", 0.0),
+        hysteresis=hysteresis,
         flow_coef=np.array(p["flow.coefficients"], dtype=float),
         p_supply=effect("supply_pressure", "pressure", P_SUPPLY_NOMINAL),
-        leak_cross=effect("leakage", "cross_coefficient", 0.0),
-        leak_atm=effect("leakage", "atmosphere_coefficient", 0.0),
-        polytropic=effect("thermal", "polytropic_index", 1.0),
+        leak_cross=p["effects.leakage.cross_coefficient"] if laminar else 0.0,
+        leak_atm=p["effects.leakage.atmosphere_coefficient"] if laminar else 0.0,
+        orifice_cross=p["effects.leakage.cross_area"] if orifice else 0.0,
+        orifice_atm=p["effects.leakage.atmosphere_area"] if orifice else 0.0,
+        polytropic=p["effects.thermal.polytropic_index"] if thermal and not heat_transfer
+        else 1.0,
+        heat_transfer=p["effects.thermal.heat_transfer"] if heat_transfer else 0.0,
+        r_gas=p["chamber.gas_constant"], t_wall=p["chamber.temperature"],
         rt=p["chamber.gas_constant"] * p["chamber.temperature"],
         area=p["chamber.piston_area"], v01=p["chamber.dead_volume_1"],
         v02=p["chamber.dead_volume_2"],
         mass=effect("moving_mass", "mass", p["mechanics.mass"]),
-        y_max=0.5 * p["mechanics.stroke"], locked=p["mechanics.locked"], planes=planes,
+        y_max=0.5 * p["mechanics.stroke"], locked=p["mechanics.locked"],
+        regulated=p["chamber.regulated"], planes=planes,
         lugre=bool(p["effects.friction_dynamics.enabled"]),
         sigma0=p["effects.friction_dynamics.bristle_stiffness"],
         sigma1=p["effects.friction_dynamics.bristle_damping"],
@@ -99,6 +114,7 @@ class Actuator:
         self._one_f = np.zeros(1)
         self._one_out = np.zeros((1, kernel.N_OUT))
         self._zero_noise = np.zeros((1, 3))
+        self._no_drive = np.zeros((0, kernel.N_DRIVE))
         self.reset()
 
     def reset(self) -> None:
@@ -109,6 +125,7 @@ class Actuator:
         x[kernel.Y] = min(max(p["mechanics.initial_position"], -c.y_max), c.y_max)
         x[kernel.P1] = x[kernel.PS1] = p["chamber.initial_pressure_1"]
         x[kernel.P2] = x[kernel.PS2] = p["chamber.initial_pressure_2"]
+        x[kernel.T1] = x[kernel.T2] = p["chamber.temperature"]
         x[kernel.STUCK] = 1.0
         self.state = x
         self.ring = np.zeros(c.delay_steps + 1)
@@ -137,17 +154,30 @@ class Actuator:
         self._one_u[0] = u
         self._one_f[0] = f_load
         kernel.advance(self.constants, self.state, self.ring, self._one_u, self._one_f,
-                       self._noise(1), self._one_out)
+                       self._no_drive, self._noise(1), self._one_out)
         return self._one_out[0]
 
-    def run(self, u: np.ndarray, f_load: np.ndarray | float = 0.0) -> np.ndarray:
-        """Advance ``len(u)`` samples; return the (n, N_OUT) outputs at the end of each."""
+    def run(self, u: np.ndarray, f_load: np.ndarray | float = 0.0,
+            drive: np.ndarray | None = None) -> np.ndarray:
+        """Advance ``len(u)`` samples; return the (n, N_OUT) outputs at the end of each.
+
+        ``drive`` (n, 4) optionally prescribes per sample the position [m] and velocity [m/s]
+        and/or the two chamber pressures [Pa]; NaN entries leave that part simulated.
+        """
         u = np.ascontiguousarray(u, dtype=float)
         if not np.all(np.isfinite(u)):
             raise ValueError("valve command contains NaN or infinite values")
         fl = np.ascontiguousarray(np.broadcast_to(f_load, u.shape), dtype=float)
+        if drive is None:
+            drive = self._no_drive
+        else:
+            drive = np.ascontiguousarray(drive, dtype=float)
+            if drive.shape != (u.shape[0], kernel.N_DRIVE):
+                raise ValueError(f"drive must have shape ({u.shape[0]}, {kernel.N_DRIVE}), "
+                                 f"got {drive.shape}")
         out = np.empty((u.shape[0], kernel.N_OUT))
-        kernel.advance(self.constants, self.state, self.ring, u, fl, self._noise(len(u)), out)
+        kernel.advance(self.constants, self.state, self.ring, u, fl, drive,
+                       self._noise(len(u)), out)
         return out
 
 

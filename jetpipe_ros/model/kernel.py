@@ -12,6 +12,11 @@ below) plus a ring buffer holding the valve's delay line. Per sub-step of length
    stick-slip cannot chatter; with the friction_dynamics effect a LuGre bristle state replaces
    the stick logic;
 5. the position advances (semi-implicit Euler) and stops inelastically at the end stops.
+
+Subsystems can be driven instead of simulated, to judge them apart (the diagnosis) or to emulate
+test rigs: a ``drive`` array prescribes, sample by sample, the piston position and velocity
+(the chambers then see the recorded motion) and/or the chamber pressures (the mechanics then see
+the recorded pressures). With ``regulated`` the pressures stay where they are (ideal regulators).
 """
 
 from __future__ import annotations
@@ -22,14 +27,21 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from jetpipe_ros.model.chamber import chamber_volumes, pressure_rates
-from jetpipe_ros.model.flow import P_ATM, chamber_inflow
+from jetpipe_ros.model.chamber import (chamber_volumes, pressure_rates,
+                                      pressure_temperature_rates)
+from jetpipe_ros.model.flow import GAMMA_AIR, P_ATM, chamber_inflow, orifice_flow
 from jetpipe_ros.model.friction import friction_parameters, static_friction, stribeck_force
 from jetpipe_ros.model.valve import U_EQ_MAX, U_EQ_MIN
 
-# State layout.
-Y, V, P1, P2, STUCK, Z, PLAY, PS1, PS2, STEP, HEAD, UCMD, UEQ, FRICTION = range(14)
-VALVE = 14  #: first of the valve chain's states
+# State layout: scalars, then the hysteresis play operators, then the valve chain.
+Y, V, P1, P2, STUCK, Z, PS1, PS2, STEP, HEAD, UCMD, UEQ, FRICTION, T1, T2 = range(15)
+PLAY = 15  #: first of the MAX_PLAY hysteresis play-operator outputs
+MAX_PLAY = 8
+VALVE = PLAY + MAX_PLAY  #: first of the valve chain's states
+
+# Columns of the ``drive`` array of :func:`advance` (NaN = simulate that part).
+DRIVE_Y, DRIVE_V, DRIVE_P1, DRIVE_P2 = range(4)
+N_DRIVE = 4
 
 # Output columns of :func:`measure` and :func:`advance`.
 OUT_T, OUT_U, OUT_Y, OUT_V, OUT_P1, OUT_P2, OUT_FRICTION, OUT_FORCE, OUT_UEQ, \
@@ -52,12 +64,17 @@ class Constants(NamedTuple):
     valve_c: np.ndarray
     valve_d: float
     delay_steps: int  #: valve transport delay [sub-steps]
-    hysteresis: float  #: play half-width [V], 0 = off
+    hysteresis: np.ndarray  #: play thresholds [V], one per element; empty = off
     flow_coef: np.ndarray  #: Eq. 8 coefficients
     p_supply: float  #: supply pressure [Pa]
     leak_cross: float  #: conductance chamber 1 -> 2 [kg/(s Pa)]
     leak_atm: float  #: conductance of each chamber to atmosphere [kg/(s Pa)]
+    orifice_cross: float  #: orifice leak area chamber 1 -> 2 [m^2]
+    orifice_atm: float  #: orifice leak area of each chamber to atmosphere [m^2]
     polytropic: float  #: polytropic index n
+    heat_transfer: float  #: wall heat conductance h A [W/K], 0 = no temperature state
+    r_gas: float  #: gas constant r [J/(kg K)]
+    t_wall: float  #: wall (and supply) temperature [K]
     rt: float  #: r T [J/kg]
     area: float  #: piston area [m^2]
     v01: float  #: chamber volumes at y = 0 [m^3]
@@ -65,6 +82,7 @@ class Constants(NamedTuple):
     mass: float  #: moving mass [kg]
     y_max: float  #: end stops at +-y_max [m]
     locked: bool  #: piston clamped
+    regulated: bool  #: chamber pressures held (ideal regulators)
     planes: np.ndarray  #: friction planes (2, 4, 3)
     lugre: bool  #: LuGre friction dynamics instead of the stick logic
     sigma0: float  #: bristle stiffness [N/m]
@@ -101,11 +119,11 @@ def measure(c: Constants, x: np.ndarray, noise: np.ndarray, out: np.ndarray) -> 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _valve_substep(c: Constants, xv: np.ndarray, tmp: np.ndarray, ring: np.ndarray, head: int,
-                   u: float, play: float) -> tuple[float, float]:
-    """Advance the valve chain one sub-step from delay-line slot ``head``; return (u_eq, play).
+                   u: float, play: np.ndarray) -> float:
+    """Advance the valve chain one sub-step from delay-line slot ``head``; return u_eq [V].
 
     ``xv`` holds the chain's state (updated in place, ``tmp`` is scratch of the same size);
-    ``play`` is the hysteresis operator's output [V].
+    ``play`` the hysteresis operators' outputs [V] (updated in place).
     """
     ring[head] = u
     u_d = ring[(head - c.delay_steps) % ring.shape[0]]
@@ -123,10 +141,16 @@ def _valve_substep(c: Constants, xv: np.ndarray, tmp: np.ndarray, ring: np.ndarr
         # Decaying derivative states would otherwise end in subnormals, which are ~100x slower.
         tmp[i] = acc if abs(acc) > 1e-200 else 0.0
     xv[:] = tmp
-    if c.hysteresis > 0.0:
-        play = min(max(play, u_f - c.hysteresis), u_f + c.hysteresis)
-        u_f = play
-    return min(max(u_f, U_EQ_MIN), U_EQ_MAX), play
+    n_play = c.hysteresis.shape[0]
+    if n_play:
+        # Prandtl-Ishlinskii: the mean of play operators (one element = a single play).
+        acc = 0.0
+        for i in range(n_play):
+            r = c.hysteresis[i]
+            play[i] = min(max(play[i], u_f - r), u_f + r)
+            acc += play[i]
+        u_f = acc / n_play
+    return min(max(u_f, U_EQ_MIN), U_EQ_MAX)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -183,46 +207,84 @@ def _mechanics_substep(c: Constants, x: np.ndarray, f_load: float, h: float) -> 
     x[V] = v_new
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _chambers_substep(c: Constants, x: np.ndarray, u_eq: float, h: float) -> None:
+    """Advance both chamber pressures (and gas temperatures) one sub-step (Eq. 11-13)."""
+    p1 = x[P1]
+    p2 = x[P2]
+    q1 = chamber_inflow(c.flow_coef, u_eq, p1, c.p_supply)
+    q2 = chamber_inflow(c.flow_coef, -u_eq, p2, c.p_supply)
+    q_x = c.leak_cross * (p1 - p2)
+    q1 += -q_x - c.leak_atm * (p1 - P_ATM)
+    q2 += q_x - c.leak_atm * (p2 - P_ATM)
+    if c.orifice_cross > 0.0 or c.orifice_atm > 0.0:
+        t_up = x[T1] if p1 > p2 else x[T2]
+        q_x = orifice_flow(c.orifice_cross, p1, p2, c.r_gas * t_up)
+        q1 += -q_x - orifice_flow(c.orifice_atm, p1, P_ATM, c.r_gas * x[T1])
+        q2 += q_x - orifice_flow(c.orifice_atm, p2, P_ATM, c.r_gas * x[T2])
+    vol1, vol2 = chamber_volumes(x[Y], c.area, c.v01, c.v02)
+    if c.heat_transfer > 0.0:
+        dvol = c.area * x[V]
+        dp1, dt1 = pressure_temperature_rates(q1, p1, x[T1], dvol, vol1, c.r_gas, c.t_wall,
+                                              GAMMA_AIR, c.heat_transfer)
+        dp2, dt2 = pressure_temperature_rates(q2, p2, x[T2], -dvol, vol2, c.r_gas, c.t_wall,
+                                              GAMMA_AIR, c.heat_transfer)
+        x[T1] = max(x[T1] + h * dt1, 1.0)
+        x[T2] = max(x[T2] + h * dt2, 1.0)
+    else:
+        dp1, dp2 = pressure_rates(q1, q2, p1, p2, x[V], vol1, vol2, c.area, c.rt, c.polytropic)
+    x[P1] = max(p1 + h * dp1, MIN_PRESSURE)
+    x[P2] = max(p2 + h * dp2, MIN_PRESSURE)
+
+
 @njit(cache=True, error_model="numpy")
 def advance(c: Constants, x: np.ndarray, ring: np.ndarray, u: np.ndarray, f_load: np.ndarray,
-            noise: np.ndarray, out: np.ndarray) -> None:
+            drive: np.ndarray, noise: np.ndarray, out: np.ndarray) -> None:
     """Advance ``len(u)`` samples from state ``x`` (in place).
 
     ``u`` [V] and ``f_load`` [N] are held over each sample; ``noise`` (n, 3) holds standard
     normals for the sensors; ``out[k]`` receives the outputs at the end of sample k.
-    Non-finite commands must be filtered by the caller.
+    ``drive`` is empty or (n, N_DRIVE): where row k holds finite values, sample k starts from
+    the prescribed position [m] and velocity [m/s] (then moves at that velocity, friction not
+    computed) and/or holds the prescribed pressures [Pa]. Non-finite commands must be filtered
+    by the caller.
     """
     h = c.dt / c.substeps
     nv = c.valve_b.shape[0]
     xv = x[VALVE:VALVE + nv].copy()
     tmp = np.empty(nv)
+    play = x[PLAY:PLAY + MAX_PLAY].copy()
     head = int(x[HEAD])
-    play = x[PLAY]
+    driven = drive.shape[0] > 0
     for k in range(u.shape[0]):
         u_k = min(max(u[k], -c.u_limit), c.u_limit)
         x[UCMD] = u_k
         fl = f_load[k]
+        move = not c.locked
+        pressurise = not c.regulated
+        if driven:
+            if math.isfinite(drive[k, DRIVE_Y]):
+                x[Y] = drive[k, DRIVE_Y]
+                x[V] = drive[k, DRIVE_V]
+                x[FRICTION] = 0.0
+                move = False
+            if math.isfinite(drive[k, DRIVE_P1]):
+                x[P1] = drive[k, DRIVE_P1]
+                x[P2] = drive[k, DRIVE_P2]
+                pressurise = False
         for _ in range(c.substeps):
-            u_eq, play = _valve_substep(c, xv, tmp, ring, head, u_k, play)
+            u_eq = _valve_substep(c, xv, tmp, ring, head, u_k, play)
             head = (head + 1) % ring.shape[0]
             x[UEQ] = u_eq
-            p1 = x[P1]
-            p2 = x[P2]
-            q1 = chamber_inflow(c.flow_coef, u_eq, p1, c.p_supply)
-            q2 = chamber_inflow(c.flow_coef, -u_eq, p2, c.p_supply)
-            q_x = c.leak_cross * (p1 - p2)
-            q1 += -q_x - c.leak_atm * (p1 - P_ATM)
-            q2 += q_x - c.leak_atm * (p2 - P_ATM)
-            vol1, vol2 = chamber_volumes(x[Y], c.area, c.v01, c.v02)
-            dp1, dp2 = pressure_rates(q1, q2, p1, p2, x[V], vol1, vol2, c.area, c.rt,
-                                      c.polytropic)
-            x[P1] = max(p1 + h * dp1, MIN_PRESSURE)
-            x[P2] = max(p2 + h * dp2, MIN_PRESSURE)
-            if c.locked:
+            if pressurise:
+                _chambers_substep(c, x, u_eq, h)
+            if move:
+                _mechanics_substep(c, x, fl, h)
+            elif c.locked:
                 x[V] = 0.0
                 x[FRICTION] = 0.0
             else:
-                _mechanics_substep(c, x, fl, h)
+                x[Y] = min(max(x[Y] + h * x[V], -c.y_max), c.y_max)
             if c.sensor_tau > 0.0:
                 w = 1.0 - math.exp(-h / c.sensor_tau)
                 x[PS1] += w * (x[P1] - x[PS1])
@@ -230,5 +292,5 @@ def advance(c: Constants, x: np.ndarray, ring: np.ndarray, u: np.ndarray, f_load
         x[STEP] += 1.0
         measure(c, x, noise[k], out[k])
     x[VALVE:VALVE + nv] = xv
+    x[PLAY:PLAY + MAX_PLAY] = play
     x[HEAD] = head
-    x[PLAY] = play

@@ -56,6 +56,8 @@ FRICTION_PLANES = {
         "coulomb": [26.16, 8.575, -11.72],
     },
 }
+THERMAL_FORMS = ("polytropic", "heat_transfer")
+LEAKAGE_FORMS = ("laminar", "orifice")
 FRICTION_UNITS = {"breakaway": "N", "stribeck_velocity": "m/s", "viscous": "N s/m", "coulomb": "N"}
 
 
@@ -122,6 +124,8 @@ _BASE: list[ParamSpec] = [
        1e4, 1.2e6),
     _p("chamber.initial_pressure_2", 416480.0, "Initial chamber 2 pressure (absolute)", "Pa",
        1e4, 1.2e6),
+    _p("chamber.regulated", False, "Chamber pressures held at their initial values by "
+       "regulators instead of the valve (the friction tests of the paper's Fig. 15)"),
     # Mechanics, Sec. 4.
     _p("mechanics.mass", 1.0, "Moving mass M", "kg", 0.01, 100.0),
     _p("mechanics.stroke", 0.05, "Stroke; end stops at +-stroke/2", "m", 1e-3, 1.0),
@@ -150,16 +154,33 @@ _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
     "valve_delay": [_p("delay", 0.002, "Extra transport delay", "s", 0.0, 0.05)],
     "valve_lag": [_p("corner_frequency", 30.0, "First-order lag corner frequency", "Hz",
                      0.5, 1000.0)],
-    "valve_hysteresis": [_p("half_width", 0.25, "Hysteresis loop half-width (play operator)",
-                            "V", 0.0, 2.0)],
+    "valve_hysteresis": [
+        _p("half_width", 0.25, "Hysteresis loop half-width (mean play threshold)", "V",
+           0.0, 2.0),
+        _p("elements", 1, "Play operators in parallel (1 = one sharp loop; more = a rounded "
+           "Prandtl-Ishlinskii loop, thresholds spread evenly around half_width)", "", 1, 8),
+    ],
     "supply_pressure": [_p("pressure", 8e5, "Supply pressure (absolute)", "Pa", 2e5, 1.2e6)],
-    "thermal": [_p("polytropic_index", 1.2, "Polytropic index n of the chamber gas", "",
-                   1.0, 1.4)],
+    "thermal": [
+        _p("form", "polytropic", "Thermal model: polytropic index, or heat transfer to the "
+           "walls with a gas temperature state per chamber", choices=THERMAL_FORMS),
+        _p("polytropic_index", 1.2, "Polytropic index n of the chamber gas (form polytropic)",
+           "", 1.0, 1.4),
+        _p("heat_transfer", 1.0, "Wall heat conductance h A of each chamber "
+           "(form heat_transfer)", "W/K", 1e-3, 100.0),
+    ],
     "leakage": [
-        _p("cross_coefficient", 3e-10, "Leak conductance across the piston, chamber 1 to 2",
-           "kg/(s Pa)", 0.0, 1e-7),
-        _p("atmosphere_coefficient", 0.0, "Leak conductance of each chamber to atmosphere",
-           "kg/(s Pa)", 0.0, 1e-7),
+        _p("form", "laminar", "Leak law: laminar (flow proportional to the pressure "
+           "difference) or orifice (compressible flow, choked below 0.528)",
+           choices=LEAKAGE_FORMS),
+        _p("cross_area", 0.0, "Effective orifice area across the piston (form orifice)", "m^2",
+           0.0, 1e-5),
+        _p("atmosphere_area", 0.0, "Effective orifice area of each chamber to atmosphere "
+           "(form orifice)", "m^2", 0.0, 1e-5),
+        _p("cross_coefficient", 3e-10, "Leak conductance across the piston, chamber 1 to 2 "
+           "(form laminar)", "kg/(s Pa)", 0.0, 1e-7),
+        _p("atmosphere_coefficient", 0.0, "Leak conductance of each chamber to atmosphere "
+           "(form laminar)", "kg/(s Pa)", 0.0, 1e-7),
     ],
     "friction_dynamics": [
         _p("bristle_stiffness", 1e5, "LuGre bristle stiffness sigma_0", "N/m", 1e2, 1e8),
@@ -177,7 +198,8 @@ for _name, _specs in _EFFECT_PARAMS.items():
     _BASE.append(_p(f"effects.{_name}.enabled", False, f"Switch on the {_name} effect"))
     for _s in _specs:
         _BASE.append(ParamSpec(f"effects.{_name}.{_s.name}", _s.default,
-                               f"{_name}: {_s.description}", _s.unit, _s.low, _s.high))
+                               f"{_name}: {_s.description}", _s.unit, _s.low, _s.high,
+                               _s.choices, _s.length))
 
 #: All model parameters by dotted name.
 SPECS: dict[str, ParamSpec] = {s.name: s for s in _BASE}
