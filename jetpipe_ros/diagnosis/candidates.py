@@ -1,0 +1,94 @@
+"""The candidate causes of a gap: each unmodelled effect of DESIGN.md s.3 with the parameters the
+diagnosis fits, their search ranges, and a typical size used to judge whether the experiments
+could show the effect at all.
+
+Ranges are wider than the typical sizes of DESIGN.md s.3 so a real effect is not clipped, and each
+contains the value at which the effect vanishes (zero delay, hysteresis, leak, bias; n = 1; the
+nominal supply and mass; a corner or bristle stiffness high enough to be invisible), so a fit to
+data without the effect can land on "no effect".
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from jetpipe_ros.model import EFFECTS, ModelParams
+
+
+@dataclass(frozen=True)
+class Knob:
+    """One fitted parameter: its name (without ``effects.<effect>.``), range and scale."""
+
+    name: str
+    low: float
+    high: float
+    off: float  #: the value at which the effect vanishes (or is invisibly small)
+    log: bool = False  #: search on a logarithmic scale
+
+    def to_value(self, z: float) -> float:
+        """Map z in [0, 1] onto the range."""
+        z = min(max(z, 0.0), 1.0)
+        if self.log:
+            return float(math.exp(math.log(self.low) + z * math.log(self.high / self.low)))
+        return float(self.low + z * (self.high - self.low))
+
+    def to_unit(self, value: float) -> float:
+        """Map a value in the range onto [0, 1]."""
+        if self.log:
+            return math.log(value / self.low) / math.log(self.high / self.low)
+        return (value - self.low) / (self.high - self.low)
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """An effect as a candidate cause: fitted knobs, fixed settings, a typical size."""
+
+    effect: str
+    knobs: tuple[Knob, ...]
+    typical: dict[str, float]
+    fixed: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def subsystem(self) -> str:
+        """valve, chamber, mechanics or sensors."""
+        return EFFECTS[self.effect]
+
+    def start(self) -> np.ndarray:
+        """Unit-scaled knobs at the effect's vanishing point."""
+        return np.array([k.to_unit(k.off) for k in self.knobs])
+
+    def values(self, z: np.ndarray) -> dict[str, float]:
+        """The effect's parameters for the unit-scaled vector ``z``."""
+        return {k.name: k.to_value(float(zi)) for k, zi in zip(self.knobs, z)}
+
+    def apply(self, params: ModelParams, values: dict[str, float]) -> ModelParams:
+        """``params`` with this effect switched on at ``values``."""
+        return params.with_effect(self.effect, **self.fixed, **values)
+
+
+CANDIDATES: dict[str, Candidate] = {c.effect: c for c in (
+    Candidate("valve_delay", (Knob("delay", 0.0, 0.008, 0.0),), {"delay": 0.003}),
+    Candidate("valve_lag", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),),
+              {"corner_frequency": 30.0}),
+    Candidate("valve_hysteresis", (Knob("half_width", 0.0, 0.6, 0.0),), {"half_width": 0.25},
+              {"elements": 1}),
+    Candidate("supply_pressure", (Knob("pressure", 4e5, 1.1e6, 1e6),), {"pressure": 8e5}),
+    Candidate("thermal", (Knob("polytropic_index", 1.0, 1.4, 1.0),), {"polytropic_index": 1.2},
+              {"form": "polytropic"}),
+    Candidate("leakage", (Knob("cross_coefficient", 0.0, 3e-9, 0.0),
+                          Knob("atmosphere_coefficient", 0.0, 3e-9, 0.0)),
+              {"cross_coefficient": 3e-10, "atmosphere_coefficient": 0.0},
+              {"form": "laminar"}),
+    Candidate("friction_dynamics", (Knob("bristle_stiffness", 1e3, 1e7, 1e7, log=True),
+                                    Knob("bristle_damping", 0.0, 3e3, 0.0)),
+              {"bristle_stiffness": 1e5, "bristle_damping": 0.0}),
+    Candidate("moving_mass", (Knob("mass", 0.1, 10.0, 1.0, log=True),), {"mass": 3.0}),
+    Candidate("sensor_dynamics", (Knob("time_constant", 0.0, 0.02, 0.0),
+                                  Knob("bias", -2e4, 2e4, 0.0),
+                                  Knob("drift", -500.0, 500.0, 0.0)),
+              {"time_constant": 0.005, "bias": 5e3, "drift": 0.0}),
+)}

@@ -1,0 +1,282 @@
+"""``jetpipe diagnose``: where the model departs from the measurements, which unmodelled effect
+causes it, and how far the gap shrinks once that effect is modelled (DESIGN.md s.6).
+
+Steps, each reported as progress: read and split the dataset; score the nominal model and locate
+its gap (signals, subsystems, regimes, frequency bands); check which candidates the experiments
+could show at all; fit every candidate on the training data (in parallel processes) and score it
+on the held-out data; try pairs when one effect leaves a significant gap; decide; write
+``diagnosis.json``, ``report.html`` and ``augmented.yaml``. The outputs are written to a temporary
+directory and moved into place only when all three are complete.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from itertools import combinations
+from pathlib import Path
+
+import numpy as np
+
+from jetpipe_ros.dataset import read_dataset
+from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate
+from jetpipe_ros.diagnosis.data import SIGNALS, Prepared, prepare
+from jetpipe_ros.diagnosis.fit import Fit, fit
+from jetpipe_ros.diagnosis.localize import by_regime, frequency_response, position_error_pct
+from jetpipe_ros.diagnosis.prediction import HORIZON, predict
+from jetpipe_ros.diagnosis.score import METRIC, predict_all, score
+from jetpipe_ros.diagnosis.verdict import Ranked, Verdict, decide, needs_pairs, rank
+from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError
+
+SCHEMA = "jetpipe.diagnosis/1"
+OUTPUTS = ("diagnosis.json", "report.html", "augmented.yaml")
+#: Candidates whose typical-size signature is below this fraction of the noise variance are
+#: reported as invisible in the experiments given.
+VISIBLE = 0.02
+PAIR_POOL = 3
+
+
+class Progress:
+    """Progress lines on stderr with elapsed time."""
+
+    def __init__(self, quiet: bool = False) -> None:
+        self.quiet = quiet
+        self.start = time.perf_counter()
+
+    def __call__(self, message: str) -> None:
+        if not self.quiet:
+            print(f"[{time.perf_counter() - self.start:6.1f} s] {message}", file=sys.stderr,
+                  flush=True)
+
+
+def _fit_job(prepared: Prepared, nominal: ModelParams, names: tuple[str, ...],
+             start: np.ndarray | None) -> Fit:
+    return fit(prepared, nominal, [CANDIDATES[n] for n in names], start)
+
+
+def fit_all(prepared: Prepared, nominal: ModelParams, jobs: Sequence[tuple[str, ...]],
+            starts: dict[tuple[str, ...], np.ndarray], workers: int,
+            progress: Callable[[str], None]) -> list[Fit]:
+    """Fit each tuple of candidates, in ``workers`` processes (1 = in this process)."""
+    fits: list[Fit] = []
+    if workers <= 1 or len(jobs) == 1:
+        for i, names in enumerate(jobs, 1):
+            f = _fit_job(prepared, nominal, names, starts.get(names))
+            fits.append(f)
+            progress(f"  [{i}/{len(jobs)}] {f.name}: held-out gap {f.holdout.gap:.2f} % "
+                     f"({f.evaluations} runs, {f.seconds:.1f} s)")
+        return fits
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        futures = [pool.submit(_fit_job, prepared, nominal, names, starts.get(names))
+                   for names in jobs]
+        for i, fut in enumerate(as_completed(futures), 1):
+            f = fut.result()
+            fits.append(f)
+            progress(f"  [{i}/{len(jobs)}] {f.name}: held-out gap {f.holdout.gap:.2f} % "
+                     f"({f.evaluations} runs, {f.seconds:.1f} s)")
+    order = {names: i for i, names in enumerate(jobs)}
+    return sorted(fits, key=lambda f: order[f.effects])
+
+
+def visibility(prepared: Prepared, nominal: ModelParams, base_preds, cand: Candidate) -> float:
+    """Signature of the candidate at its typical size, as a fraction of the noise variance."""
+    preds = predict_all(cand.apply(nominal, dict(cand.typical)), prepared, None)
+    num, noise = [], []
+    for s in SIGNALS:
+        d, c = 0.0, 0
+        for rec, a, b in zip(prepared.records, preds, base_preds):
+            if s in rec.signals():
+                m = a.free
+                d += float(np.sum((a.signal(s)[m] - b.signal(s)[m]) ** 2))
+                c += int(m.sum())
+        if c:
+            num.append(d / c / prepared.scale[s] ** 2)
+            noise.append((prepared.noise[s] / prepared.scale[s]) ** 2)
+    return float(np.mean(num) / max(np.mean(noise), 1e-12)) if num else 0.0
+
+
+def subsystem_gaps(prepared: Prepared, nominal: ModelParams) -> dict:
+    """Gap of each subsystem replayed with its inputs held on the measurements."""
+    chambers = score(prepared, predict_all(nominal, prepared, None, "chambers"), None,
+                     ("p1", "p2"))
+    mechanics = score(prepared, [predict(nominal, r, prepared.dt, "mechanics")
+                                 if not r.locked else None for r in prepared.records], None,
+                      ("y",))
+    offsets = []
+    for rec in prepared.records:
+        pred = predict(nominal, rec, prepared.dt, "chambers")
+        steady = np.abs(np.gradient(rec.p1, prepared.dt)) < 2e4
+        steady[: rec.t.size // 10] = False
+        if steady.sum() > 100:
+            offsets.append(float(np.median((rec.p1 - pred.p1)[steady])))
+    return {
+        "valve_and_chambers": {"driven_by": "measured command and piston motion",
+                               **chambers.to_json()},
+        "mechanics": {"driven_by": "measured chamber pressures", **mechanics.to_json()}
+        if mechanics.mse else None,
+        "sensors": {"steady_pressure_offset_pa": float(np.median(offsets)) if offsets else None,
+                    "noise": {"y_m": prepared.noise["y"], "p1_pa": prepared.noise["p1"],
+                              "p2_pa": prepared.noise["p2"]}},
+    }
+
+
+def separating_experiment(a: ModelParams, b: ModelParams, prepared: Prepared) -> dict | None:
+    """The experiment of the dataset where two fitted models differ most, relative to noise."""
+    best = None
+    for rec in prepared.records:
+        pa = predict(a, rec, prepared.dt)
+        pb = predict(b, rec, prepared.dt)
+        d = np.mean([np.mean(((pa.signal(s) - pb.signal(s)) / max(prepared.noise[s], 1e-12))
+                             [pa.free] ** 2) for s in rec.signals()])
+        if best is None or d > best["difference_over_noise"]:
+            best = {"experiment": rec.name, "piston": rec.entry.piston,
+                    "difference_over_noise": float(np.sqrt(d))}
+    return best
+
+
+def diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams | None = None,
+             workers: int = 2, quiet: bool = False) -> dict:
+    """Run the diagnosis on a dataset and write its outputs; return diagnosis.json's content."""
+    progress = Progress(quiet)
+    nominal = params if params is not None else ModelParams()
+    already = nominal.enabled_effects()
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ParameterError(f"--out {out_dir}: exists and is not a directory")
+    progress(f"reading {dataset_dir}")
+    dataset = read_dataset(dataset_dir)
+    prepared = prepare(dataset)
+    progress(f"{len(prepared.records)} experiments, {prepared.seconds('train'):.1f} s train, "
+             f"{prepared.seconds('holdout'):.1f} s holdout; {prepared.split_note}")
+
+    progress("nominal model: predictions and where the gap lies")
+    nom_all = predict_all(nominal, prepared, None)
+    nom_hold = score(prepared, nom_all, "holdout")
+    nom_train = score(prepared, nom_all, "train")
+    subsystems = subsystem_gaps(prepared, nominal)
+
+    candidates = [c for name, c in CANDIDATES.items() if name not in already]
+    progress("how visible each candidate would be at its typical size")
+    seen = {c.effect: visibility(prepared, nominal, nom_all, c) for c in candidates}
+
+    workers = max(1, min(workers, os.cpu_count() or 1))
+    progress(f"fitting {len(candidates)} candidates on the training data ({workers} processes)")
+    fits = fit_all(prepared, nominal, [(c.effect,) for c in candidates], {}, workers, progress)
+    ranking = rank(fits, nom_hold, prepared.dt)
+    singles = {f.effects[0]: f for f in fits}
+    if ranking and needs_pairs(ranking[0], nom_hold):
+        pool = [r.fit.effects[0] for r in ranking if r.improvement > 0][:PAIR_POOL]
+        pairs = list(combinations(pool, 2))
+        if pairs:
+            progress(f"the best single effect leaves {ranking[0].fit.holdout.gap:.2f} %: "
+                     f"fitting {len(pairs)} pairs")
+            starts = {p: np.concatenate([
+                np.array([k.to_unit(singles[e].values[e][k.name]) for k in CANDIDATES[e].knobs])
+                for e in p]) for p in pairs}
+            fits += fit_all(prepared, nominal, pairs, starts, workers, progress)
+            ranking = rank(fits, nom_hold, prepared.dt)
+    verdict = decide(ranking, nom_hold)
+
+    progress("scoring the augmented model")
+    augmented = verdict.winner.fit.params if verdict.winner else nominal
+    aug_all = predict_all(augmented, prepared, None) if verdict.winner else nom_all
+    aug_hold = score(prepared, aug_all, "holdout")
+    preds = {"nominal": nom_all, "augmented": aug_all}
+    stroke = nominal["mechanics.stroke"]
+    localization = {
+        "metric": METRIC, "horizon_s": HORIZON,
+        "signals": {"nominal": nom_hold.to_json(), "augmented": aug_hold.to_json(),
+                    "nominal_train": nom_train.to_json()},
+        "subsystems": subsystems,
+        "regimes": by_regime(prepared, preds, "holdout", stroke),
+        "frequency": frequency_response(prepared, preds),
+    }
+    separating = None
+    if verdict.ambiguous and verdict.runner_up is not None:
+        separating = separating_experiment(verdict.winner.fit.params,
+                                           verdict.runner_up.fit.params, prepared)
+    result = _result(prepared, nominal, verdict, ranking, nom_hold, aug_hold, localization,
+                     seen, separating, preds)
+    progress(f"writing {out_dir}")
+    _write_outputs(out_dir, result, augmented, prepared, preds)
+    progress(f"verdict: {result['verdict']['effect']} "
+             f"(confidence {result['verdict']['confidence']:.2f}); {verdict.reason}")
+    return result
+
+
+def _result(prepared: Prepared, nominal: ModelParams, verdict: Verdict,
+            ranking: Sequence[Ranked], nom_hold, aug_hold, localization: dict,
+            seen: dict[str, float], separating: dict | None, preds: dict) -> dict:
+    win = verdict.winner
+    effects = list(win.fit.effects) if win else []
+    verdict_json = {
+        "effect": win.fit.name if win else "none",
+        "effects": effects,
+        "subsystem": "+".join(dict.fromkeys(EFFECTS[e] for e in effects)) if win else "none",
+        "params": (win.fit.values[effects[0]] if len(effects) == 1 else win.fit.values)
+        if win else {},
+        "confidence": verdict.confidence,
+        "reason": verdict.reason,
+        "ambiguous_with": verdict.runner_up.fit.name if verdict.ambiguous else None,
+        "separating_experiment": separating,
+    }
+    invisible = sorted(e for e, v in seen.items() if v < VISIBLE)
+    paper = {}
+    for label in ("nominal", "augmented"):
+        pos = position_error_pct(prepared, preds[label], "holdout")
+        paper[label] = {"position_error_pct": pos}
+        for band, vals in localization["frequency"].get("bands", {}).items():
+            paper[label][f"gain_error_pct {band}"] = vals[label]["gain_error_pct"]
+            paper[label][f"phase_error_deg {band}"] = vals[label]["phase_error_deg"]
+    return {
+        "schema": SCHEMA,
+        "verdict": verdict_json,
+        "gap": {"metric": METRIC, "nominal": nom_hold.gap, "augmented": aug_hold.gap,
+                "shrinkage": 1.0 - aug_hold.gap / nom_hold.gap if nom_hold.gap > 0 else 0.0,
+                "on": "holdout", "paper_metrics": paper},
+        "localization": localization,
+        "ranking": [r.to_json(nom_hold) for r in ranking],
+        "visibility": {"at_typical_size": seen, "too_small_to_see": invisible,
+                       "threshold": VISIBLE},
+        "data": {"split": prepared.split_note, "notes": prepared.notes,
+                 "sample_time_s": prepared.dt, "noise": prepared.noise,
+                 "scale": prepared.scale,
+                 "experiments": [{"name": r.name, "piston": r.entry.piston,
+                                  "train_s": float(r.train.sum() * prepared.dt),
+                                  "holdout_s": float(r.holdout.sum() * prepared.dt)}
+                                 for r in prepared.records]},
+        "nominal_effects": nominal.enabled_effects(),
+    }
+
+
+def _write_outputs(out_dir: Path, result: dict, augmented: ModelParams, prepared: Prepared,
+                   preds: dict) -> None:
+    from jetpipe_ros.diagnosis.report import render
+
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
+    try:
+        (tmp / "diagnosis.json").write_text(json.dumps(result, indent=2, default=_json))
+        header = ("# jetpipe diagnose: the nominal model plus the effect the diagnosis "
+                  f"identified ({result['verdict']['effect']}).\n")
+        (tmp / "augmented.yaml").write_text(header + augmented.to_ros_yaml(only_changed=True))
+        (tmp / "report.html").write_text(render(result, prepared, preds))
+        out_dir.mkdir(parents=True, exist_ok=True)
+        for name in OUTPUTS:
+            os.replace(tmp / name, out_dir / name)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _json(x):
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    raise TypeError(f"not JSON serialisable: {type(x).__name__}")

@@ -1,0 +1,133 @@
+"""Fitting candidate effects on the training experiments and scoring them on the held-out ones.
+
+One knob: a coarse grid over the whole range (the landscape of a delay, quantised to sub-steps,
+is flat in places and may have several minima), then a bounded Brent search around the best grid
+point. Several knobs: a grid over the first from the vanishing point of the others, then bounded
+least squares (trust-region reflective) on the residual vector. Every fit has a budget of model
+evaluations and keeps the best point it has seen.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize
+
+from jetpipe_ros.diagnosis.candidates import Candidate
+from jetpipe_ros.diagnosis.data import Prepared
+from jetpipe_ros.diagnosis.score import Score, predict_all, residual_vector, score
+from jetpipe_ros.model import ModelParams
+
+GRID = 9
+BUDGET = 40
+
+
+@dataclass
+class Fit:
+    """A fitted candidate (one effect or a pair) with its train and held-out scores."""
+
+    effects: tuple[str, ...]
+    values: dict[str, dict[str, float]]  #: fitted parameters per effect
+    params: ModelParams  #: the augmented model
+    train: Score
+    holdout: Score
+    evaluations: int
+    seconds: float
+
+    @property
+    def name(self) -> str:
+        """The effect, or the effects joined with '+'."""
+        return "+".join(self.effects)
+
+
+class _BudgetSpent(Exception):
+    pass
+
+
+class _Objective:
+    """Training residuals as a function of the unit-scaled knobs of one or more candidates."""
+
+    def __init__(self, prepared: Prepared, nominal: ModelParams,
+                 candidates: Sequence[Candidate], budget: int) -> None:
+        self.prepared = prepared
+        self.nominal = nominal
+        self.candidates = tuple(candidates)
+        self.sizes = [len(c.knobs) for c in self.candidates]
+        self.budget = budget
+        self.calls = 0
+        self.best_cost = np.inf
+        self.best_z: np.ndarray | None = None
+
+    def params(self, z: np.ndarray) -> ModelParams:
+        p = self.nominal
+        for cand, zc in zip(self.candidates, np.split(z, np.cumsum(self.sizes)[:-1])):
+            p = cand.apply(p, cand.values(zc))
+        return p
+
+    def values(self, z: np.ndarray) -> dict[str, dict[str, float]]:
+        return {c.effect: c.values(zc) for c, zc in
+                zip(self.candidates, np.split(z, np.cumsum(self.sizes)[:-1]))}
+
+    def residuals(self, z: np.ndarray) -> np.ndarray:
+        if self.calls >= self.budget:
+            raise _BudgetSpent
+        self.calls += 1
+        z = np.clip(np.asarray(z, dtype=float), 0.0, 1.0)
+        preds = predict_all(self.params(z), self.prepared, "train")
+        r = residual_vector(self.prepared, preds, "train")
+        cost = float(r @ r)
+        if cost < self.best_cost:
+            self.best_cost = cost
+            self.best_z = z.copy()
+        return r
+
+    def cost(self, z: np.ndarray) -> float:
+        r = self.residuals(z)
+        return float(r @ r)
+
+
+def fit(prepared: Prepared, nominal: ModelParams, candidates: Sequence[Candidate],
+        start: np.ndarray | None = None, budget: int = BUDGET) -> Fit:
+    """Fit ``candidates`` (their knobs jointly) on the training data; score on the holdout."""
+    began = time.perf_counter()
+    obj = _Objective(prepared, nominal, candidates, budget)
+    try:
+        if start is None:
+            start = _grid_first_knob(obj)
+        if start.size == 1:
+            _brent(obj, start)
+        else:
+            optimize.least_squares(obj.residuals, np.clip(start, 1e-6, 1 - 1e-6),
+                                   bounds=(0.0, 1.0), diff_step=0.03, x_scale=1.0,
+                                   xtol=1e-3, ftol=1e-4, max_nfev=budget)
+    except _BudgetSpent:
+        pass
+    z = obj.best_z if obj.best_z is not None else np.clip(start, 0.0, 1.0)
+    params = obj.params(z)
+    train = score(prepared, predict_all(params, prepared, "train"), "train")
+    holdout = score(prepared, predict_all(params, prepared, "holdout"), "holdout")
+    return Fit(effects=tuple(c.effect for c in candidates), values=obj.values(z), params=params,
+               train=train, holdout=holdout, evaluations=obj.calls,
+               seconds=time.perf_counter() - began)
+
+
+def _grid_first_knob(obj: _Objective) -> np.ndarray:
+    base = np.concatenate([c.start() for c in obj.candidates])
+    best, best_cost = base, np.inf
+    for g in np.linspace(0.0, 1.0, GRID):
+        z = base.copy()
+        z[0] = g
+        c = obj.cost(z)
+        if c < best_cost:
+            best, best_cost = z, c
+    return best
+
+
+def _brent(obj: _Objective, start: np.ndarray) -> None:
+    step = 1.0 / (GRID - 1)
+    lo, hi = max(start[0] - step, 0.0), min(start[0] + step, 1.0)
+    optimize.minimize_scalar(lambda g: obj.cost(np.array([g])), bounds=(lo, hi),
+                             method="bounded", options={"xatol": 2e-3, "maxiter": 14})
