@@ -36,6 +36,7 @@ class Record:
     p1: np.ndarray  #: measured chamber 1 pressure [Pa]
     p2: np.ndarray  #: measured chamber 2 pressure [Pa]
     v: np.ndarray  #: velocity estimated from y [m/s]
+    smooth: dict[str, np.ndarray]  #: y, p1, p2 smoothed (zero phase), to restart predictions
     f_load: np.ndarray  #: external load [N]
     train: np.ndarray  #: bool mask of training samples
     holdout: np.ndarray  #: bool mask of held-out samples
@@ -64,6 +65,9 @@ class Prepared:
     scale: dict[str, float]  #: normalisation scale per signal [m or Pa]
     split_note: str  #: how train and holdout were chosen
     notes: list[str] = field(default_factory=list)
+    #: normalised mean square error a perfect model would still show per signal (sensor noise
+    #: through the prediction restarts), set by :func:`noise_floor.calibrate`
+    floor: dict[str, float] = field(default_factory=dict)
 
     def seconds(self, role: str) -> float:
         """Total length of the ``role`` samples [s]."""
@@ -76,6 +80,12 @@ def velocity(y: np.ndarray, dt: float, window_s: float = 0.021) -> np.ndarray:
     if y.size < n:
         return np.gradient(y, dt)
     return savgol_filter(y, n, 2, deriv=1, delta=dt)
+
+
+def smoothed(x: np.ndarray, dt: float, window_s: float = 0.015) -> np.ndarray:
+    """Zero-phase smoothing (quadratic Savitzky-Golay) that keeps steps sharp to ~``window_s``."""
+    n = max(5, int(round(window_s / dt)) | 1)
+    return savgol_filter(x, n, 2) if x.size >= n else x.copy()
 
 
 def noise_level(x: np.ndarray) -> float:
@@ -150,7 +160,8 @@ def _record(entry: Entry, exp: Experiment, dt: float, held: bool, by_time: bool)
         holdout = np.full(n, held)
     f_load = exp.f_load if exp.f_load is not None else np.full(n, entry.load_force)
     y = exp.y
+    smooth = {"y": smoothed(y, dt), "p1": smoothed(exp.p1, dt), "p2": smoothed(exp.p2, dt)}
     return Record(name=entry.name, entry=entry, t=exp.t - exp.t[0], u=exp.u, y=y, p1=exp.p1,
-                  p2=exp.p2, v=np.zeros(n) if entry.locked else velocity(y, dt),
+                  p2=exp.p2, v=np.zeros(n) if entry.locked else velocity(y, dt), smooth=smooth,
                   f_load=np.ascontiguousarray(f_load, dtype=float), train=~holdout,
                   holdout=holdout)

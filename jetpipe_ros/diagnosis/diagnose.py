@@ -29,8 +29,9 @@ from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate
 from jetpipe_ros.diagnosis.data import SIGNALS, Prepared, prepare
 from jetpipe_ros.diagnosis.fit import Fit, fit
 from jetpipe_ros.diagnosis.localize import by_regime, frequency_response, position_error_pct
+from jetpipe_ros.diagnosis.noise_floor import calibrate
 from jetpipe_ros.diagnosis.prediction import HORIZON, predict
-from jetpipe_ros.diagnosis.score import METRIC, predict_all, score
+from jetpipe_ros.diagnosis.score import METRIC, predict_all, score, window_errors
 from jetpipe_ros.diagnosis.verdict import Ranked, Verdict, decide, needs_pairs, rank
 from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError
 
@@ -155,9 +156,12 @@ def diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams |
     progress(f"{len(prepared.records)} experiments, {prepared.seconds('train'):.1f} s train, "
              f"{prepared.seconds('holdout'):.1f} s holdout; {prepared.split_note}")
 
+    progress("noise floor: scoring the model on a simulated twin of the dataset")
+    prepared.floor = calibrate(prepared, nominal)
     progress("nominal model: predictions and where the gap lies")
     nom_all = predict_all(nominal, prepared, None)
     nom_hold = score(prepared, nom_all, "holdout")
+    nom_windows = window_errors(prepared, nom_all, "holdout")
     nom_train = score(prepared, nom_all, "train")
     subsystems = subsystem_gaps(prepared, nominal)
 
@@ -168,7 +172,7 @@ def diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams |
     workers = max(1, min(workers, os.cpu_count() or 1))
     progress(f"fitting {len(candidates)} candidates on the training data ({workers} processes)")
     fits = fit_all(prepared, nominal, [(c.effect,) for c in candidates], {}, workers, progress)
-    ranking = rank(fits, nom_hold, prepared.dt)
+    ranking = rank(fits, nom_hold, nom_windows, prepared.dt)
     singles = {f.effects[0]: f for f in fits}
     if ranking and needs_pairs(ranking[0], nom_hold):
         pool = [r.fit.effects[0] for r in ranking if r.improvement > 0][:PAIR_POOL]
@@ -180,7 +184,7 @@ def diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams |
                 np.array([k.to_unit(singles[e].values[e][k.name]) for k in CANDIDATES[e].knobs])
                 for e in p]) for p in pairs}
             fits += fit_all(prepared, nominal, pairs, starts, workers, progress)
-            ranking = rank(fits, nom_hold, prepared.dt)
+            ranking = rank(fits, nom_hold, nom_windows, prepared.dt)
     verdict = decide(ranking, nom_hold)
 
     progress("scoring the augmented model")

@@ -18,7 +18,8 @@ from scipy import optimize
 
 from jetpipe_ros.diagnosis.candidates import Candidate
 from jetpipe_ros.diagnosis.data import Prepared
-from jetpipe_ros.diagnosis.score import Score, predict_all, residual_vector, score
+from jetpipe_ros.diagnosis.score import (Score, predict_all, residual_vector, score,
+                                         window_errors)
 from jetpipe_ros.model import ModelParams
 
 GRID = 9
@@ -34,6 +35,7 @@ class Fit:
     params: ModelParams  #: the augmented model
     train: Score
     holdout: Score
+    holdout_windows: np.ndarray  #: held-out error per prediction window (see window_errors)
     evaluations: int
     seconds: float
 
@@ -108,9 +110,10 @@ def fit(prepared: Prepared, nominal: ModelParams, candidates: Sequence[Candidate
     z = obj.best_z if obj.best_z is not None else np.clip(start, 0.0, 1.0)
     params = obj.params(z)
     train = score(prepared, predict_all(params, prepared, "train"), "train")
-    holdout = score(prepared, predict_all(params, prepared, "holdout"), "holdout")
+    held = predict_all(params, prepared, "holdout")
     return Fit(effects=tuple(c.effect for c in candidates), values=obj.values(z), params=params,
-               train=train, holdout=holdout, evaluations=obj.calls,
+               train=train, holdout=score(prepared, held, "holdout"),
+               holdout_windows=window_errors(prepared, held, "holdout"), evaluations=obj.calls,
                seconds=time.perf_counter() - began)
 
 

@@ -4,7 +4,10 @@ The piston integrates its velocity and the recorded command of a closed-loop exp
 a replayed position wander off, so free-piston experiments are predicted over short horizons:
 every ``horizon`` seconds the model restarts from the measured position, velocity and pressures,
 after a short warm-up during which the valve sees the recorded command while chambers and piston
-are held on the measurements (so the valve's own state is right at the restart). Locked-piston
+are held on the measurements (so the valve's own state is right at the restart). Measurements
+that set the state are smoothed (zero phase) first, so sensor noise does not enter the restarts,
+and pass back through the inverse of the model's own pressure-sensor model (bias, drift, lag) when
+the sensor_dynamics effect is on, so a restart does not hand the sensor's error to the state. Locked-piston
 experiments are stable and are predicted whole.
 
 The same kernel also replays one subsystem with its inputs held on the measurements: the valve
@@ -52,38 +55,51 @@ def windows(n: int, dt: float, horizon: float = HORIZON, warmup: float = WARMUP)
     return held
 
 
+def _sensor_inverse(params: ModelParams, p_meas: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Chamber pressure [Pa] that the model's pressure sensor would read as ``p_meas``."""
+    if not params["effects.sensor_dynamics.enabled"]:
+        return p_meas
+    tau = params["effects.sensor_dynamics.time_constant"]
+    p = p_meas - params["effects.sensor_dynamics.bias"] - params["effects.sensor_dynamics.drift"] * t
+    if tau > 0.0 and p.size > 2:
+        p = p + tau * np.gradient(p, t)
+    return p
+
+
 def predict(params: ModelParams, rec: Record, dt: float, mode: str = "full",
             horizon: float = HORIZON, warmup: float = WARMUP) -> Prediction:
     """Predict experiment ``rec`` with ``params`` (noise-free) at sample time ``dt``."""
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    y = rec.smooth["y"]
+    p1, p2 = (_sensor_inverse(params, rec.smooth[s], rec.t) for s in ("p1", "p2"))
     changes = {"mechanics.locked": rec.locked, "sensors.noise": False,
                "integration.sample_time": dt,
-               "mechanics.initial_position": float(rec.y[0]),
-               "chamber.initial_pressure_1": float(np.clip(rec.p1[0], 1e4, 1.2e6)),
-               "chamber.initial_pressure_2": float(np.clip(rec.p2[0], 1e4, 1.2e6))}
+               "mechanics.initial_position": float(np.clip(y[0], -0.5, 0.5)),
+               "chamber.initial_pressure_1": float(np.clip(p1[0], 1e4, 1.2e6)),
+               "chamber.initial_pressure_2": float(np.clip(p2[0], 1e4, 1.2e6))}
     act = Actuator(params.with_values(changes))
     n = rec.t.size
     drive = np.full((n - 1, kernel.N_DRIVE), np.nan)
     held = np.zeros(n, dtype=bool)
     if mode == "chambers" and not rec.locked:
-        drive[:, kernel.DRIVE_Y] = rec.y[:-1]
+        drive[:, kernel.DRIVE_Y] = y[:-1]
         drive[:, kernel.DRIVE_V] = rec.v[:-1]
     elif mode == "mechanics":
-        drive[:, kernel.DRIVE_P1] = rec.p1[:-1]
-        drive[:, kernel.DRIVE_P2] = rec.p2[:-1]
+        drive[:, kernel.DRIVE_P1] = p1[:-1]
+        drive[:, kernel.DRIVE_P2] = p2[:-1]
         if not rec.locked:
             held = windows(n, dt, horizon, warmup)
             rows = held[:-1]
-            drive[rows, kernel.DRIVE_Y] = rec.y[:-1][rows]
+            drive[rows, kernel.DRIVE_Y] = y[:-1][rows]
             drive[rows, kernel.DRIVE_V] = rec.v[:-1][rows]
     elif mode == "full" and not rec.locked:
         held = windows(n, dt, horizon, warmup)
         rows = held[:-1]
-        drive[rows, kernel.DRIVE_Y] = rec.y[:-1][rows]
+        drive[rows, kernel.DRIVE_Y] = y[:-1][rows]
         drive[rows, kernel.DRIVE_V] = rec.v[:-1][rows]
-        drive[rows, kernel.DRIVE_P1] = rec.p1[:-1][rows]
-        drive[rows, kernel.DRIVE_P2] = rec.p2[:-1][rows]
+        drive[rows, kernel.DRIVE_P1] = p1[:-1][rows]
+        drive[rows, kernel.DRIVE_P2] = p2[:-1][rows]
     out = np.empty((n, kernel.N_OUT))
     out[0] = act.outputs()
     if n > 1:

@@ -3,7 +3,8 @@
 Residuals (prediction minus measurement) of each signal are divided by the signal's scale (its
 spread over the dataset, at least 1 mm or 0.1 bar), squared and averaged over the scored samples:
 a normalised mean square error per signal. Part of it is sensor noise no model can explain; the
-*excess* subtracts the noise variance estimated from the data. The gap is
+*excess* subtracts it: the error a perfect model would show on data like these (see
+:mod:`noise_floor`), or else the noise variance estimated from the data. The gap is
 
     gap = 100 % * sqrt(mean over signals of the excess)
 
@@ -20,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from jetpipe_ros.diagnosis.data import SIGNALS, Prepared, Record
-from jetpipe_ros.diagnosis.prediction import Prediction, predict
+from jetpipe_ros.diagnosis.prediction import HORIZON, Prediction, predict
 from jetpipe_ros.model import ModelParams
 
 METRIC = "excess_nrmse_pct"
@@ -101,7 +102,8 @@ def score(prepared: Prepared, preds: Sequence[Prediction | None], role: str | No
             counts[s] += int(mask.sum())
     present = [s for s in signals if counts[s] > 0]
     return Score(mse={s: sums[s] / counts[s] for s in present},
-                 noise={s: (prepared.noise[s] / prepared.scale[s]) ** 2 for s in present},
+                 noise={s: prepared.floor.get(s, (prepared.noise[s] / prepared.scale[s]) ** 2)
+                        for s in present},
                  count={s: counts[s] for s in present})
 
 
@@ -125,3 +127,25 @@ def residual_vector(prepared: Prepared, preds: Sequence[Prediction | None], role
         if r.size:
             out.append(r / np.sqrt(r.size * len(present)))
     return np.concatenate(out) if out else np.zeros(1)
+
+
+def window_errors(prepared: Prepared, preds: Sequence[Prediction | None], role: str,
+                  horizon: float = HORIZON) -> np.ndarray:
+    """Normalised mean square error of each ``horizon``-long window of the ``role`` samples
+    (signals averaged), in a fixed order: paired samples for comparing two models.
+    """
+    period = max(int(round(horizon / prepared.dt)), 1)
+    out = []
+    for rec, pred in zip(prepared.records, preds):
+        if pred is None:
+            continue
+        mask = _mask(rec, pred, role, None)
+        for start in range(0, rec.t.size, period):
+            m = mask[start:start + period]
+            if m.sum() < 10:
+                continue
+            errs = [np.mean(((pred.signal(s)[start:start + period] -
+                              rec.signal(s)[start:start + period]) / prepared.scale[s])[m] ** 2)
+                    for s in rec.signals()]
+            out.append(float(np.mean(errs)))
+    return np.array(out)

@@ -1,19 +1,25 @@
 """From fitted candidates to an answer: ranking, significance, pairs, confidence, ambiguity.
 
 A candidate *explains* the gap when, on the held-out data, it removes at least
-:data:`MIN_SHRINKAGE` of the gap (the excess error beyond noise, :mod:`score`) and at least
-:data:`MIN_IMPROVEMENT` of the mean square error itself, so that fitting noise is not mistaken for
-an effect. Candidates are ranked by a Bayesian information criterion over the held-out error with
-one sample per signal and prediction window (the residuals within a window are correlated), so an
-extra parameter must pay for itself.
+:data:`MIN_SHRINKAGE` of the gap (the excess error beyond noise, :mod:`score`) and its
+improvement is significant, so fitting noise is not mistaken for an effect: either a paired
+t-test over the prediction windows (the errors of one window are correlated, different windows
+nearly independent) gives t >= :data:`MIN_T`, or the error removed exceeds the whole noise floor
+(an improvement concentrated in a few windows, e.g. the locked-piston tests, is real when it is
+larger than anything noise could produce). Candidates are ranked by a Bayesian information criterion
+over the held-out error with one sample per signal and window, so an extra parameter must pay for
+itself; a pair must also remove :data:`PAIR_GAIN` more of the gap than its better member, with
+significance, or the single effect is preferred.
 
-The answer is ``none`` when the nominal gap is within noise or no candidate explains it. Two
-candidates are *indistinguishable* when the gap the runner-up leaves is within
-:data:`AMBIGUOUS` times (plus :data:`NOISE_GAP` / 5) the gap the winner leaves; then the answer
+The answer is ``none`` when no candidate explains the gap: either the nominal gap is within
+noise, or its cause is not among the candidates. Two
+candidates are *indistinguishable* when the runner-up also explains the gap and leaves at most
+:data:`AMBIGUOUS` times the gap the winner leaves; then the answer
 keeps the winner, lowers the confidence and names the experiment that separates them best.
 Confidence is the winner's shrinkage times its margin over the runner-up, ln(runner-up's gap /
 winner's gap) / ln(4) capped at 1 (full when the runner-up leaves four times the winner's gap),
-or for ``none`` one minus the best shrinkage any candidate achieved.
+or for ``none`` one minus the strongest evidence against it: the largest shrinkage any candidate
+achieved, weighted by how significant it was.
 """
 
 from __future__ import annotations
@@ -22,17 +28,20 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
 from jetpipe_ros.diagnosis.fit import Fit
 from jetpipe_ros.diagnosis.prediction import HORIZON
 from jetpipe_ros.diagnosis.score import Score
 from jetpipe_ros.model import EFFECTS
 
 MIN_SHRINKAGE = 0.3
-MIN_IMPROVEMENT = 0.01
+MIN_T = 3.0
+PAIR_GAIN = 0.15
 AMBIGUOUS = 1.25
 #: A winner leaving more than this fraction of the gap (and a gap above NOISE_GAP) tries pairs.
 PAIR_IF_LEFT = 0.3
-#: Gaps below this [%] are treated as within noise.
+#: A gap below this [%] that no candidate significantly reduces is reported as noise.
 NOISE_GAP = 0.5
 
 
@@ -43,12 +52,15 @@ class Ranked:
     fit: Fit
     shrinkage: float  #: 1 - gap_augmented / gap_nominal (held out)
     improvement: float  #: relative reduction of the held-out mean square error
+    t: float  #: paired t statistic of the improvement over the prediction windows
+    removed_over_floor: float  #: held-out error removed / the noise floor's error
     bic: float
 
     @property
     def explains(self) -> bool:
         """True when the fit removes a significant part of the gap."""
-        return self.shrinkage >= MIN_SHRINKAGE and self.improvement >= MIN_IMPROVEMENT
+        return self.shrinkage >= MIN_SHRINKAGE and (self.t >= MIN_T or
+                                                    self.removed_over_floor >= 1.0)
 
     def to_json(self, nominal: Score) -> dict:
         """The ranking row of diagnosis.json."""
@@ -57,7 +69,8 @@ class Ranked:
                 "subsystem": "+".join(dict.fromkeys(EFFECTS[e] for e in effects)),
                 "params": self.fit.values if len(effects) > 1 else self.fit.values[effects[0]],
                 "train_gap": self.fit.train.gap, "holdout_gap": self.fit.holdout.gap,
-                "shrinkage": self.shrinkage, "explains": self.explains,
+                "shrinkage": self.shrinkage, "explains": self.explains, "t": self.t,
+                "removed_over_noise_floor": self.removed_over_floor,
                 "holdout_by_signal": self.fit.holdout.to_json(), "bic": self.bic,
                 "evaluations": self.fit.evaluations, "fit_seconds": self.fit.seconds}
 
@@ -67,7 +80,19 @@ def effective_samples(s: Score, dt: float) -> float:
     return max(sum(s.count.values()) * dt / HORIZON, 1.0)
 
 
-def rank(fits: Sequence[Fit], nominal: Score, dt: float) -> list[Ranked]:
+def paired_t(before: np.ndarray, after: np.ndarray) -> float:
+    """t statistic of the mean reduction from ``before`` to ``after`` (paired samples)."""
+    d = before - after
+    if d.size < 2:
+        return 0.0
+    sd = float(np.std(d, ddof=1))
+    if sd == 0.0:
+        return 0.0 if float(np.mean(d)) == 0.0 else math.copysign(math.inf, float(np.mean(d)))
+    return float(np.mean(d)) / (sd / math.sqrt(d.size))
+
+
+def rank(fits: Sequence[Fit], nominal: Score, nominal_windows: np.ndarray,
+         dt: float) -> list[Ranked]:
     """Rank fits by held-out BIC (best first)."""
     n = effective_samples(nominal, dt)
     out = []
@@ -76,7 +101,9 @@ def rank(fits: Sequence[Fit], nominal: Score, dt: float) -> list[Ranked]:
         shrink = 1.0 - f.holdout.gap / nominal.gap if nominal.gap > 0 else 0.0
         imp = 1.0 - f.holdout.total / nominal.total if nominal.total > 0 else 0.0
         bic = n * math.log(max(f.holdout.total, 1e-300)) + k * math.log(n)
-        out.append(Ranked(f, shrink, imp, bic))
+        removed = (nominal.total - f.holdout.total) / max(nominal.noise_total, 1e-300)
+        out.append(Ranked(f, shrink, imp, paired_t(nominal_windows, f.holdout_windows), removed,
+                          bic))
     return sorted(out, key=lambda r: r.bic)
 
 
@@ -84,6 +111,15 @@ def needs_pairs(best: Ranked, nominal: Score) -> bool:
     """True when the best single effect leaves a significant part of the gap."""
     left = best.fit.holdout.gap
     return left > NOISE_GAP and left > PAIR_IF_LEFT * nominal.gap
+
+
+def _pair_pays(pair: Ranked, ranking: Sequence[Ranked]) -> bool:
+    singles = [r for r in ranking if len(r.fit.effects) == 1 and r.fit.effects[0] in
+               pair.fit.effects]
+    if not singles:
+        return True
+    best = max(singles, key=lambda r: r.shrinkage)
+    return pair.shrinkage - best.shrinkage >= PAIR_GAIN
 
 
 @dataclass
@@ -99,17 +135,20 @@ class Verdict:
 
 def decide(ranking: Sequence[Ranked], nominal: Score) -> Verdict:
     """Choose the answer from a ranking (singles and pairs together)."""
-    best_shrink = max((r.shrinkage for r in ranking), default=0.0)
-    if nominal.gap <= NOISE_GAP:
+    best_shrink = max((_clip(r.shrinkage) * _clip(max(r.t / MIN_T, r.removed_over_floor))
+                       for r in ranking), default=0.0)
+    explaining = [r for r in ranking if r.explains and
+                  (len(r.fit.effects) == 1 or _pair_pays(r, ranking))]
+    if not explaining and nominal.gap <= NOISE_GAP:
         return Verdict(None, _clip(1.0 - best_shrink),
                        f"the nominal model's held-out gap ({nominal.gap:.2f} %) is within what "
                        f"sensor noise explains")
-    explaining = [r for r in ranking if r.explains]
     if not explaining:
         return Verdict(None, _clip(1.0 - best_shrink),
                        f"a gap of {nominal.gap:.2f} % remains but no candidate removes "
-                       f"{MIN_SHRINKAGE:.0%} of it on held-out data (best "
-                       f"{best_shrink:.0%}): the cause is not among the candidates")
+                       f"{MIN_SHRINKAGE:.0%} of it on held-out data with significance (best "
+                       f"{max(r.shrinkage for r in ranking):.0%}): the cause is not among the "
+                       f"candidates")
     win = explaining[0]
     rivals = [r for r in ranking if r is not win and not set(r.fit.effects) & set(win.fit.effects)
               and r.improvement > 0]
@@ -120,7 +159,7 @@ def decide(ranking: Sequence[Ranked], nominal: Score) -> Verdict:
         g_win = max(win.fit.holdout.gap, 1e-6)
         g_run = runner.fit.holdout.gap
         margin = min(1.0, max(0.0, math.log(max(g_run, g_win) / g_win) / math.log(4.0)))
-        ambiguous = g_run <= AMBIGUOUS * g_win + NOISE_GAP / 5
+        ambiguous = runner.explains and g_run <= AMBIGUOUS * g_win
     confidence = _clip(win.shrinkage) * margin
     reason = (f"{win.fit.name} removes {win.shrinkage:.0%} of the held-out gap "
               f"({nominal.gap:.2f} % -> {win.fit.holdout.gap:.2f} %)")

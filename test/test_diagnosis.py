@@ -1,0 +1,129 @@
+"""jetpipe diagnose: data preparation, the verdict on data with a known effect, outputs, bad input."""
+
+import json
+
+import numpy as np
+import pytest
+from scipy.signal import chirp
+
+from jetpipe_ros.cli import main
+from jetpipe_ros.dataset import DatasetError, Entry, read_dataset, write_dataset
+from jetpipe_ros.diagnosis import diagnose
+from jetpipe_ros.diagnosis.data import noise_level, prepare
+from jetpipe_ros.model import ModelParams, load_params, simulate
+
+DT = 1e-3
+
+
+def _experiments():
+    t = lambda d: np.arange(int(d / DT)) * DT  # noqa: E731
+    return [
+        ("charge", np.concatenate([np.full(2500, 2.0), np.full(1500, -2.0)]), True, "train"),
+        ("square_small", 0.6 * np.sign(np.sin(2 * np.pi * 0.25 * t(4)) + 1e-9), False, "train"),
+        ("sweep", 0.3 * chirp(t(4), 1.6, 4, 60, method="logarithmic"), False, "train"),
+        ("square_large", 2.0 * np.sign(np.sin(2 * np.pi * 0.9 * t(3)) + 1e-9), False, "holdout"),
+        ("sweep_large", 1.2 * chirp(t(3), 1.6, 3, 60, method="logarithmic"), False, "holdout"),
+    ]
+
+
+def make_dataset(root, params, seed=0, roles=True):
+    """Simulate the small campaign above with sensor noise and write it as a dataset."""
+    out = []
+    for k, (name, u, locked, role) in enumerate(_experiments()):
+        p = params.with_values({"mechanics.locked": locked, "sensors.noise": True,
+                                "sensors.seed": seed * 10 + k})
+        tr = simulate(p, u)
+        out.append((Entry(f"{name}.csv", piston="locked" if locked else "free",
+                          role=role if roles else None),
+                    {"t": tr.t, "u": tr.u, "y": tr.y_meas, "p1": tr.p1_meas, "p2": tr.p2_meas}))
+    return write_dataset(root, out)
+
+
+@pytest.fixture(scope="module")
+def lag_result(tmp_path_factory):
+    root = tmp_path_factory.mktemp("lag")
+    make_dataset(root / "data", ModelParams().with_effect("valve_lag", corner_frequency=20.0))
+    result = diagnose(root / "data", root / "out", workers=2, quiet=True)
+    return root, result
+
+
+def test_noise_level_recovers_the_sensor_sigma():
+    rng = np.random.default_rng(3)
+    t = np.arange(20000) * DT
+    x = 4e5 + 2e5 * np.sin(2 * np.pi * 0.5 * t) + 500.0 * rng.standard_normal(t.size)
+    assert noise_level(x) == pytest.approx(500.0, rel=0.05)
+
+
+def test_verdict_names_the_withheld_effect_and_recovers_it(lag_result):
+    root, result = lag_result
+    v = result["verdict"]
+    assert v["effect"] == "valve_lag" and v["subsystem"] == "valve"
+    assert v["params"]["corner_frequency"] == pytest.approx(20.0, rel=0.15)
+    assert v["confidence"] > 0.5
+    assert result["gap"]["shrinkage"] >= 0.7
+    assert result["gap"]["augmented"] < result["gap"]["nominal"]
+    assert result["ranking"][0]["effect"] == "valve_lag"
+    assert {r["effect"] for r in result["ranking"]} >= {"valve_delay", "leakage", "thermal"}
+
+
+def test_outputs_follow_the_contract(lag_result):
+    root, result = lag_result
+    out = root / "out"
+    doc = json.loads((out / "diagnosis.json").read_text())
+    assert doc["schema"] == "jetpipe.diagnosis/1"
+    assert set(doc) >= {"verdict", "gap", "localization", "ranking"}
+    assert set(doc["localization"]) >= {"signals", "subsystems", "regimes", "frequency"}
+    assert doc["gap"]["metric"] == "excess_nrmse_pct"
+    html = (out / "report.html").read_text()
+    assert html.count("data:image/png;base64") >= 4 and "valve_lag" in html
+    aug = load_params(out / "augmented.yaml")
+    assert aug.enabled_effects() == ["valve_lag"]
+    assert aug["effects.valve_lag.corner_frequency"] == pytest.approx(
+        result["verdict"]["params"]["corner_frequency"], rel=1e-6)
+    assert not [p for p in root.iterdir() if p.name.startswith(".")]
+
+
+def test_nominal_data_gives_none(tmp_path):
+    make_dataset(tmp_path / "data", ModelParams(), seed=4)
+    result = diagnose(tmp_path / "data", tmp_path / "out", workers=2, quiet=True)
+    assert result["verdict"]["effect"] == "none"
+    assert result["gap"]["nominal"] < 0.5
+
+
+def test_split_fallbacks_are_stated(tmp_path):
+    make_dataset(tmp_path / "data", ModelParams(), roles=False)
+    prep = prepare(read_dataset(tmp_path / "data"))
+    assert "every third" in prep.split_note
+    assert [r.holdout.all() for r in prep.records] == [False, False, True, False, False]
+    single = tmp_path / "single"
+    ds = read_dataset(tmp_path / "data")
+    write_dataset(single, [(Entry("a.csv"), ds.experiments[1].columns()),
+                           (Entry("b.csv"), ds.experiments[2].columns())])
+    prep = prepare(read_dataset(single))
+    assert "last 30 %" in prep.split_note
+    assert prep.records[0].holdout.mean() == pytest.approx(0.3, abs=0.01)
+
+
+def test_bad_datasets_get_clear_errors_and_leave_no_output(tmp_path, capsys):
+    make_dataset(tmp_path / "data", ModelParams())
+    csv = tmp_path / "data" / "sweep.csv"
+    lines = csv.read_text().splitlines()
+    lines[100] = lines[100].replace(lines[100].split(",")[3], "nan", 1)
+    csv.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "out"
+    assert main(["diagnose", str(tmp_path / "data"), "--out", str(out), "--quiet"]) == 2
+    assert "sweep.csv: line 101, column 'p1'" in capsys.readouterr().err
+    assert not out.exists()
+    # Everything held out: no training data.
+    index = tmp_path / "data" / "dataset.yaml"
+    index.write_text(index.read_text().replace("role: train", "role: holdout"))
+    with pytest.raises(DatasetError, match="every experiment is marked holdout"):
+        prepare(read_dataset(tmp_path / "data"))
+
+
+def test_too_little_data_is_refused(tmp_path):
+    cols = {"t": np.arange(500) * DT, "u": np.zeros(500), "y": np.zeros(500),
+            "p1": np.full(500, 4.1648e5), "p2": np.full(500, 4.1648e5)}
+    write_dataset(tmp_path / "d", [(Entry("a.csv"), cols), (Entry("b.csv"), cols)])
+    with pytest.raises(DatasetError, match="s of train data; the diagnosis needs at least"):
+        prepare(read_dataset(tmp_path / "d"))
