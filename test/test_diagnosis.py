@@ -115,10 +115,11 @@ def test_bad_datasets_get_clear_errors_and_leave_no_output(tmp_path, capsys):
     assert "sweep.csv: line 101, column 'p1'" in capsys.readouterr().err
     assert not out.exists()
     # Everything held out: no training data.
-    index = tmp_path / "data" / "dataset.yaml"
+    make_dataset(tmp_path / "all_held", ModelParams())
+    index = tmp_path / "all_held" / "dataset.yaml"
     index.write_text(index.read_text().replace("role: train", "role: holdout"))
     with pytest.raises(DatasetError, match="every experiment is marked holdout"):
-        prepare(read_dataset(tmp_path / "data"))
+        prepare(read_dataset(tmp_path / "all_held"))
 
 
 def test_too_little_data_is_refused(tmp_path):
