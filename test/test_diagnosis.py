@@ -21,6 +21,7 @@ def _experiments():
         ("charge", np.concatenate([np.full(2500, 2.0), np.full(1500, -2.0)]), True, "train"),
         ("square_small", 0.6 * np.sign(np.sin(2 * np.pi * 0.25 * t(4)) + 1e-9), False, "train"),
         ("sweep", 0.3 * chirp(t(4), 1.6, 4, 60, method="logarithmic"), False, "train"),
+        ("square_mid", 1.5 * np.sign(np.sin(2 * np.pi * 0.6 * t(3)) + 1e-9), False, "train"),
         ("square_large", 2.0 * np.sign(np.sin(2 * np.pi * 0.9 * t(3)) + 1e-9), False, "holdout"),
         ("sweep_large", 1.2 * chirp(t(3), 1.6, 3, 60, method="logarithmic"), False, "holdout"),
     ]
@@ -94,7 +95,7 @@ def test_split_fallbacks_are_stated(tmp_path):
     make_dataset(tmp_path / "data", ModelParams(), roles=False)
     prep = prepare(read_dataset(tmp_path / "data"))
     assert "every third" in prep.split_note
-    assert [r.holdout.all() for r in prep.records] == [False, False, True, False, False]
+    assert [r.holdout.all() for r in prep.records] == [False, False, True, False, False, True]
     single = tmp_path / "single"
     ds = read_dataset(tmp_path / "data")
     write_dataset(single, [(Entry("a.csv"), ds.experiments[1].columns()),
