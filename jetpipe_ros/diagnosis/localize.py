@@ -26,7 +26,7 @@ END_STOP_MARGIN = 5e-4
 REVERSAL_WINDOW = 0.03  #: [s] either side of a velocity reversal
 SMALL_VALVE = 0.6  #: [V]
 BANDS = ((1.0, 5.0), (5.0, 20.0), (20.0, 70.0))  #: [Hz]
-MIN_COHERENCE = 0.6
+MIN_COHERENCE = 0.5
 
 
 def regimes(rec: Record, dt: float, stroke: float = 0.05) -> dict[str, np.ndarray]:
@@ -89,42 +89,41 @@ def frequency_response(prepared: Prepared, preds: dict[str, Sequence[Prediction 
                        signal: str = "p1", nperseg: int = 1024) -> dict:
     """Command-to-``signal`` frequency responses of data and models, and their gap per band.
 
-    Returns the frequency grid [Hz], data gain and phase, per model gain and phase, and per band
-    the mean absolute gain error [%] and phase error [deg] over the coherent bins.
+    Each experiment contributes the frequency bins where its own data are coherent (the
+    sweeps and PRBS across the band, square waves at their harmonics); responses are averaged
+    over contributing experiments weighted by input power. Returns the frequency grid [Hz], gain
+    [Pa/V] and unwrapped phase [deg] of data and models, and per band the mean absolute gain
+    error [%] and phase error [deg].
     """
     fs = 1.0 / prepared.dt
     keys = ["data", *preds]
-    acc = {k: None for k in keys}
-    puu = None
-    coh_num = None
-    pyy = None
+    num = {k: None for k in keys}
+    weight = None
     f = None
     for i, rec in enumerate(prepared.records):
-        if rec.t.size < nperseg:
+        if rec.t.size < nperseg or np.std(rec.u) < 1e-6:
             continue
         u = rec.u - rec.u.mean()
-        if np.std(u) < 1e-6:
-            continue
         f, p_uu = sps.welch(u, fs, nperseg=nperseg)
-        puu = p_uu if puu is None else puu + p_uu
+        _, coh = sps.coherence(u, rec.signal(signal), fs, nperseg=nperseg)
+        w = np.where(coh > MIN_COHERENCE, p_uu, 0.0)
+        weight = w if weight is None else weight + w
         for k in keys:
             x = rec.signal(signal) if k == "data" else preds[k][i].signal(signal)
             _, p_ux = sps.csd(u, x - x.mean(), fs, nperseg=nperseg)
-            acc[k] = p_ux if acc[k] is None else acc[k] + p_ux
-            if k == "data":
-                _, p_xx = sps.welch(x - x.mean(), fs, nperseg=nperseg)
-                pyy = p_xx if pyy is None else pyy + p_xx
-    if f is None:
+            h = w * p_ux / np.maximum(p_uu, 1e-300)
+            num[k] = h if num[k] is None else num[k] + h
+    if f is None or weight is None:
         return {}
-    coh = np.abs(acc["data"]) ** 2 / np.maximum(puu * pyy, 1e-300)
-    h = {k: acc[k] / np.maximum(puu, 1e-300) for k in keys}
-    good = (coh > MIN_COHERENCE) & (f >= BANDS[0][0]) & (f <= BANDS[-1][1])
-    out: dict = {"signal": signal, "freq": f[good].tolist(),
-                 "gain": {k: np.abs(h[k][good]).tolist() for k in keys},
-                 "phase_deg": {k: np.degrees(np.angle(h[k][good])).tolist() for k in keys},
+    good = (weight > 0) & (f >= BANDS[0][0]) & (f <= BANDS[-1][1])
+    h = {k: num[k][good] / weight[good] for k in keys}
+    fg = f[good]
+    out: dict = {"signal": signal, "freq": fg.tolist(),
+                 "gain": {k: np.abs(h[k]).tolist() for k in keys},
+                 "phase_deg": {k: np.degrees(np.unwrap(np.angle(h[k]))).tolist() for k in keys},
                  "bands": {}}
     for lo, hi in BANDS:
-        sel = good & (f >= lo) & (f < hi)
+        sel = (fg >= lo) & (fg < hi)
         if sel.sum() < 2:
             continue
         band = {}

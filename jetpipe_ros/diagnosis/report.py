@@ -125,8 +125,8 @@ def frequency_figure(result: dict) -> str:
     for name in ("data", "nominal", "augmented"):
         if name == "augmented" and result["verdict"]["effect"] == "none":
             continue
-        style = dict(color=COLORS[name], lw=1.4 if name == "data" else 1.0,
-                     marker="." if name == "data" else None, ls="none" if name == "data"
+        style = dict(color=COLORS[name], lw=1.0, ms=4 if name == "data" else 2,
+                     marker="o" if name == "data" else ".", ls="none" if name == "data"
                      else "-")
         a1.semilogx(f, 20 * np.log10(np.maximum(np.array(fr["gain"][name]), 1e-300)),
                     label=name, **style)
@@ -135,7 +135,7 @@ def frequency_figure(result: dict) -> str:
     a2.set_ylabel("phase [deg]")
     a2.set_xlabel("frequency [Hz]")
     a1.legend(fontsize=8)
-    a1.set_title("command to chamber 1 pressure (coherent bins of all experiments)")
+    a1.set_title("command to chamber 1 pressure (bins where the data are coherent)")
     return _figure_png(fig)
 
 
