@@ -1,0 +1,13 @@
+"""Identification campaigns, pure Python (no ROS): excitation signals, the plan read from
+``config/campaign.yaml``, its schedule, and an offline runner that simulates a plan through the
+model and writes the dataset the ``id_recorder`` node would record."""
+
+from jetpipe_ros.campaign.errors import CampaignError
+from jetpipe_ros.campaign.offline import run_campaign_offline
+from jetpipe_ros.campaign.plan import (Campaign, Command, ExperimentSpec, Phase, SignalSpec,
+                                       default_campaign, load_campaign, parse_campaign)
+from jetpipe_ros.campaign.rig import reconfigure
+
+__all__ = ["Campaign", "CampaignError", "Command", "ExperimentSpec", "Phase", "SignalSpec",
+           "default_campaign", "load_campaign", "parse_campaign", "reconfigure",
+           "run_campaign_offline"]
