@@ -54,3 +54,17 @@ def test_an_invisible_truth_accepts_none(kind):
     assert case.correct
     case.visible = True
     assert not case.correct
+
+
+def test_selfcheck_datasets_are_the_default_campaign(tmp_path):
+    from jetpipe_ros.campaign import default_campaign
+    from jetpipe_ros.dataset import read_dataset
+    from jetpipe_ros.diagnosis.cli import campaign_dataset
+    from jetpipe_ros.diagnosis.data import prepare
+    from jetpipe_ros.model import ModelParams
+
+    campaign_dataset(ModelParams().with_values({"sensors.noise": True}), tmp_path / "d", seed=7)
+    prep = prepare(read_dataset(tmp_path / "d"))
+    assert [r.name for r in prep.records] == [e.name for e in default_campaign().experiments]
+    assert prep.seconds("holdout") >= 10.0 and prep.seconds("train") >= 60.0
+    assert prep.noise["p1"] == pytest.approx(500.0, rel=0.1)
