@@ -43,7 +43,8 @@ def test_contract_is_design_section_4():
     topics = interface.load_topics()
     assert set(topics) == {"voltage_cmd", "load_force", "position", "chamber1/pressure",
                            "chamber2/pressure", "friction_force", "joint_states",
-                           "position_setpoint", "/clock"}
+                           "position_setpoint", "/clock", "voltage_applied",
+                           "voltage_excitation"}
     assert topics["chamber1/pressure"].type == "sensor_msgs/msg/FluidPressure"
     assert topics["joint_states"].type == "sensor_msgs/msg/JointState"
     assert topics["voltage_cmd"].direction == "controller, id_recorder -> actuator_sim"

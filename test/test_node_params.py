@@ -55,7 +55,8 @@ def test_good_file_with_integers_and_effect(ros_context, tmp_path):
         assert node.actuator.params["friction.exit.viscous"] == [-400.0, 325.0, 355.0]
         assert node.actuator.params.enabled_effects() == ["valve_lag"]
         mass = node.describe_parameter("mechanics.mass")
-        assert mass.read_only and "[kg]" in mass.description
+        assert not mass.read_only and "[kg]" in mass.description  # rebuilt at run time
+        assert node.describe_parameter("integration.sample_time").read_only
         assert (mass.floating_point_range[0].from_value,
                 mass.floating_point_range[0].to_value) == (0.01, 100.0)
         assert not node.describe_parameter("command_timeout").read_only

@@ -115,8 +115,12 @@ def test_runtime_parameter_changes(probe):
         assert probe.spin_until(future.done, 10.0)
         return future.result().results[0]
 
-    read_only = set_one("valve.coil_resistance", 200.0)
+    read_only = set_one("integration.sample_time", 0.002)
     assert not read_only.successful and "read-only" in read_only.reason
+    model = set_one("valve.coil_resistance", 200.0)  # rebuilds the model, keeps its state
+    assert model.successful, model.reason
+    bad_model = set_one("mechanics.mass", -1.0)
+    assert not bad_model.successful and "mechanics.mass" in bad_model.reason
     bad = set_one("command_timeout", -1.0)
     assert not bad.successful and "command_timeout" in bad.reason
     good = set_one("command_timeout", 0.4)

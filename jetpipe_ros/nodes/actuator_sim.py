@@ -12,6 +12,19 @@ Time modes (parameter ``time_mode``):
 - ``sim``: the node publishes ``/clock`` with the simulated time, stamps with it, sets its own
   clock from it, and runs ``real_time_factor`` times faster than the wall clock (0: as fast as
   it can), handling incoming messages between batches of samples.
+- ``sim`` with ``lockstep: true``: the commander paces the simulation. Each ``voltage_cmd``
+  received applies that command for one sample, which is stepped and published at once; with
+  no command the simulation waits, re-publishing its latest sample every ``lockstep_kick``
+  seconds so that a commander that joins late can answer. Campaigns run this way (the
+  ``id_recorder`` and ``controller`` answer every sample), as fast as the loop turns.
+
+Every sample also publishes ``voltage_applied``: the command held over the sample that ends at
+its stamp, so a recording pairs each measurement with the command that produced it whatever the
+transport delays.
+
+Model parameters may be changed at run time (``ros2 param set``, or a test rig's switch such as
+``mechanics.locked``): the model is rebuilt with the new values and keeps its state.
+``integration.sample_time`` and ``sensors.seed`` are fixed at start-up.
 
 Run: ``ros2 run jetpipe_ros actuator_sim --ros-args --params-file config/actuator.yaml``
 (or ``python -m jetpipe_ros.nodes.actuator_sim ...``). Exit status 2 on bad parameters.
@@ -19,6 +32,7 @@ Run: ``ros2 run jetpipe_ros actuator_sim --ros-args --params-file config/actuato
 
 from __future__ import annotations
 
+import array
 import math
 import signal
 import sys
@@ -38,6 +52,7 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.time import Time
 from rclpy.time_source import TimeSource
 
+from jetpipe_ros.campaign.rig import reconfigure
 from jetpipe_ros.model import SPECS, Actuator, ModelParams, ParameterError
 from jetpipe_ros.model import kernel as k
 from jetpipe_ros.model.params import NODE_NAME, ParamSpec, check_value
@@ -63,12 +78,19 @@ NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
               "samples", 1, 1000),
     ParamSpec("report_period", 10.0, "Period of the step-rate report in the log, 0 = off",
               "s", 0.0, 3600.0),
+    ParamSpec("lockstep", False,
+              "sim mode: step one sample per voltage_cmd received, wait without one"),
+    ParamSpec("lockstep_kick", 0.2,
+              "lockstep: re-publish the latest sample after this long without a voltage_cmd",
+              "s", 0.01, 10.0),
     ParamSpec("executor", "events",
               "rclpy executor: EventsExecutor (less CPU) or SingleThreadedExecutor",
               choices=("events", "single")),
 ]}
-#: Node parameters that may change at run time; the others, and all model ones, are read-only.
+#: Node parameters that may change at run time; the others are read-only.
 DYNAMIC = ("real_time_factor", "command_timeout", "report_period")
+#: Model parameters fixed at start-up (the node's time line and noise sequence depend on them).
+MODEL_STATIC = ("integration.sample_time", "sensors.seed")
 
 TICK = 1e-3  #: shortest wall-clock timer period [s]
 SPIN_TIMEOUT = 0.1  #: spin_once timeout [s]; EventsExecutor must never spin without one
@@ -90,6 +112,9 @@ class ActuatorSim(Node):
         self._limit = params["valve.command_limit"]
         self._variance = self.actuator.constants.sigma_p ** 2
         self._sim = opts["time_mode"] == "sim"
+        self._lockstep = self._sim and opts["lockstep"]
+        self._last_out: list[float] | None = None  # latest published outputs (lockstep kick)
+        self._waiting_since = -math.inf  # wall time [s] lockstep began waiting for a command
 
         self._u = 0.0  # held valve command [V]
         self._f_load = 0.0  # held load force [N]
@@ -101,7 +126,7 @@ class ActuatorSim(Node):
         self._make_messages()
         self._pub = {name: interface.publisher(self, name) for name in (
             "position", "chamber1/pressure", "chamber2/pressure", "friction_force",
-            "joint_states")}
+            "joint_states", "voltage_applied")}
         if self._sim:
             self._pub["/clock"] = interface.publisher(self, "/clock")
             self._take_clock()
@@ -118,6 +143,8 @@ class ActuatorSim(Node):
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
         effects = ", ".join(params.enabled_effects()) or "none"
         rate = f", real_time_factor {opts['real_time_factor']:g}" if self._sim else ""
+        if self._lockstep:
+            rate = ", lockstep (one sample per voltage_cmd)"
         self.get_logger().info(
             f"started: time_mode {opts['time_mode']}{rate}, sample time {self._dt * 1e3:g} ms, "
             f"effects: {effects}, topic contract {interface.share_file(interface.CONTRACT)}")
@@ -127,7 +154,9 @@ class ActuatorSim(Node):
     def _load_parameters(self) -> tuple[ModelParams, dict[str, Any]]:
         """Declare and validate every parameter; raise StartupError listing all problems."""
         static = [s for s in NODE_SPECS.values() if s.name not in DYNAMIC]
-        errors = declare(self, SPECS.values(), read_only=True)
+        errors = declare(self, [SPECS[n] for n in MODEL_STATIC], read_only=True)
+        errors += declare(self, [s for s in SPECS.values() if s.name not in MODEL_STATIC],
+                          read_only=False)
         errors += declare(self, static, read_only=True)
         errors += declare(self, [NODE_SPECS[n] for n in DYNAMIC], read_only=False)
         for name in unknown_overrides(self, [*SPECS, *NODE_SPECS]):
@@ -172,11 +201,20 @@ class ActuatorSim(Node):
         self._msg_joint = JointState()
         self._msg_joint.header.frame_id = self.opts["frame_id"]
         self._msg_joint.name = [self.opts["joint_name"]]
+        self._msg_applied = JointState()
+        self._msg_applied.header.frame_id = self.opts["frame_id"]
+        self._msg_applied.name = ["valve"]
         self._msg_clock = ClockMsg()
 
     # -- run-time parameters ----------------------------------------------------------------
 
     def _check_update(self, params: list[Parameter[Any]]) -> SetParametersResult:
+        model = {p.name: _plain(p.value) for p in params if p.name in SPECS}
+        if model:
+            try:
+                self.actuator.params.with_values(model)
+            except ParameterError as exc:
+                return SetParametersResult(successful=False, reason=str(exc))
         for p in params:
             if p.name == "use_sim_time" and p.value:
                 return SetParametersResult(successful=False, reason=(
@@ -189,6 +227,15 @@ class ActuatorSim(Node):
         return SetParametersResult(successful=True)
 
     def _apply_update(self, params: list[Parameter[Any]]) -> None:
+        model = {p.name: _plain(p.value) for p in params if p.name in SPECS}
+        if model:
+            reconfigure(self.actuator, model)
+            self._limit = self.actuator.params["valve.command_limit"]
+            self._variance = self.actuator.constants.sigma_p ** 2
+            for m in self._msg_p:
+                m.variance = self._variance
+            shown = ", ".join(f"{k} = {v}" for k, v in model.items())
+            self.get_logger().info(f"model parameters changed (state kept): {shown}")
         for p in params:
             if p.name in DYNAMIC:
                 self.opts[p.name] = p.value
@@ -203,7 +250,7 @@ class ActuatorSim(Node):
             self.get_logger().warning(
                 f"ignoring non-finite voltage_cmd {u}; holding {self._u:g} V",
                 throttle_duration_sec=WARN_PERIOD)
-            return
+            u = self._u
         if abs(u) > self._limit:
             self.get_logger().warning(
                 f"voltage_cmd {u:g} V beyond valve.command_limit {self._limit:g} V; clipped",
@@ -212,6 +259,10 @@ class ActuatorSim(Node):
         self._u = u
         self._last_cmd = self._samples * self._dt
         self._timed_out = False
+        if self._lockstep:
+            self._step()
+            self.get_clock().set_ros_time_override(Time(nanoseconds=self._stamp_ns()))
+            self._waiting_since = time.monotonic()
 
     def _on_load(self, msg: Any) -> None:
         if not math.isfinite(msg.data):
@@ -245,12 +296,25 @@ class ActuatorSim(Node):
         if not self._ticking:  # not counting the time the node took to get spinning
             self._start(now)
             self._ticking = True
+        if self._lockstep:
+            self._kick(now)
+            self._maybe_report()
+            return
         n = self._pacer.due(now)
         for _ in range(n):
             self._step()
         if n and self._sim:
             self.get_clock().set_ros_time_override(Time(nanoseconds=self._stamp_ns()))
         self._maybe_report()
+
+    def _kick(self, now: float) -> None:
+        """Lockstep: (re-)publish the latest sample if no command came for lockstep_kick."""
+        if now - self._waiting_since < self.opts["lockstep_kick"]:
+            return
+        if self._last_out is None:  # nothing published yet: the initial state at t = 0
+            self._last_out = self.actuator.outputs().tolist()
+        self._publish(self._last_out, self._stamp_ns())
+        self._waiting_since = now
 
     def _stamp_ns(self) -> int:
         """Stamp of the latest sample [ns]: simulated time, or the node clock at the sample."""
@@ -268,6 +332,7 @@ class ActuatorSim(Node):
                 f"(u = {self._u:g} V, load {self._f_load:g} N); model reset")
             self.actuator.reset()
             return
+        self._last_out = out
         self._publish(out, self._stamp_ns())
 
     def _publish(self, out: list[float], stamp_ns: int) -> None:
@@ -290,6 +355,11 @@ class ActuatorSim(Node):
         joint.velocity = [out[k.OUT_V]]
         joint.effort = [out[k.OUT_FORCE]]
         self._pub["joint_states"].publish(joint)
+        applied = self._msg_applied
+        applied.header.stamp.sec = sec
+        applied.header.stamp.nanosec = nanosec
+        applied.position = [out[k.OUT_U]]
+        self._pub["voltage_applied"].publish(applied)
         if self._sim:
             self._msg_clock.clock.sec = sec
             self._msg_clock.clock.nanosec = nanosec
@@ -315,6 +385,11 @@ class ActuatorSim(Node):
             f"{p.largest} samples, overruns {p.overruns} ({p.dropped} samples dropped), "
             f"model resets {self._resets}")
         self._report_at = (now, self._samples)
+
+
+def _plain(v: Any) -> Any:
+    """A parameter value as the model schema wants it (arrays as lists)."""
+    return list(v) if isinstance(v, (array.array, tuple)) else v
 
 
 def _executor(kind: str) -> Any:
