@@ -158,9 +158,13 @@ def summary(result: dict) -> str:
                      f"<code>augmented.yaml</code> runs the improved model.")
         if v["ambiguous_with"]:
             sep = v["separating_experiment"]
-            extra = (f" The experiment '{html.escape(sep['experiment'])}' separates them best "
-                     f"here ({sep['difference_over_noise']:.1f} x noise); a longer or "
-                     f"larger-amplitude run of it would settle the question."
+            where = ("of this dataset; a longer run of it"
+                     if sep and sep["in_dataset"] else
+                     "of the default campaign (config/campaign.yaml), not in this dataset; "
+                     "recording it") if sep else ""
+            extra = (f" The experiment '{html.escape(sep['experiment'])}' {where} would "
+                     f"separate them best (their predictions differ by "
+                     f"{sep['difference_over_noise']:.1f} x the sensor noise)."
                      if sep else "")
             lines.append(f"But <code>{html.escape(v['ambiguous_with'])}</code> explains the "
                          f"data almost as well: these experiments cannot tell the two apart."

@@ -1,0 +1,84 @@
+"""The decision rules of the diagnosis on constructed rankings (no fitting)."""
+
+import numpy as np
+import pytest
+
+from jetpipe_ros.diagnosis.fit import Fit
+from jetpipe_ros.diagnosis.score import Score
+from jetpipe_ros.diagnosis.verdict import decide, paired_t, rank
+from jetpipe_ros.model import ModelParams
+
+FLOOR = 1e-4
+
+
+def score(gap_pct):
+    """A one-signal score whose gap is ``gap_pct`` above a noise floor of 1e-4."""
+    return Score(mse={"p1": FLOOR + (gap_pct / 100) ** 2}, noise={"p1": FLOOR},
+                 count={"p1": 20000})
+
+
+def fit(name, gap_pct, windows):
+    effects = tuple(name.split("+"))
+    return Fit(effects=effects, values={e: {"x": 1.0} for e in effects}, params=ModelParams(),
+               train=score(gap_pct), holdout=score(gap_pct),
+               holdout_windows=np.asarray(windows, dtype=float), evaluations=1, seconds=0.0)
+
+
+def windows(level, rng, n=20, jitter=1e-5):
+    return level + jitter * rng.standard_normal(n)
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(0)
+
+
+def test_paired_t_sees_a_consistent_improvement(rng):
+    before = windows(2e-3, rng)
+    assert paired_t(before, before - 1e-3) > 1e6
+    assert paired_t(before, windows(1e-3, rng)) > 10
+    assert abs(paired_t(before, before + 1e-6 * rng.standard_normal(20))) < 3
+
+
+def test_clear_winner_is_named_with_high_confidence(rng):
+    nom = windows(FLOOR + 4e-4, rng)
+    fits = [fit("valve_lag", 0.2, windows(FLOOR + 1e-5, rng)),
+            fit("valve_delay", 1.2, windows(FLOOR + 1.5e-4, rng)),
+            fit("thermal", 2.0, nom)]
+    v = decide(rank(fits, score(2.0), nom, 1e-3), score(2.0))
+    assert v.winner.fit.name == "valve_lag" and not v.ambiguous
+    assert v.confidence > 0.85
+
+
+def test_two_equal_explanations_are_ambiguous(rng):
+    nom = windows(FLOOR + 4e-4, rng)
+    fits = [fit("valve_lag", 0.50, windows(FLOOR + 2e-5, rng)),
+            fit("valve_delay", 0.55, windows(FLOOR + 2.2e-5, rng))]
+    v = decide(rank(fits, score(2.0), nom, 1e-3), score(2.0))
+    assert v.ambiguous and v.runner_up.fit.name == "valve_delay"
+    assert v.confidence < 0.2
+
+
+def test_noise_level_gap_with_no_significant_fit_is_none(rng):
+    nom = windows(FLOOR, rng, jitter=3e-5)
+    fits = [fit("valve_lag", 0.05, nom + 2e-5 * rng.standard_normal(20))]
+    v = decide(rank(fits, score(0.1), nom, 1e-3), score(0.1))
+    assert v.winner is None and "within what sensor noise explains" in v.reason
+
+
+def test_unexplained_gap_is_none_naming_the_reason(rng):
+    nom = windows(FLOOR + 4e-4, rng)
+    fits = [fit("leakage", 1.8, windows(FLOOR + 3.2e-4, rng))]  # 10 % of the gap: too little
+    v = decide(rank(fits, score(2.0), nom, 1e-3), score(2.0))
+    assert v.winner is None and "not among the candidates" in v.reason
+
+
+def test_a_pair_must_remove_clearly_more_than_its_better_member(rng):
+    nom = windows(FLOOR + 4e-4, rng)
+    single = fit("thermal", 0.80, windows(FLOOR + 6.4e-5, rng))
+    pair = fit("thermal+leakage", 0.75, windows(FLOOR + 5.6e-5, rng))
+    v = decide(rank([single, pair], score(2.0), nom, 1e-3), score(2.0))
+    assert v.winner.fit.name == "thermal"
+    better_pair = fit("thermal+leakage", 0.1, windows(FLOOR + 1e-6, rng))
+    v = decide(rank([single, better_pair], score(2.0), nom, 1e-3), score(2.0))
+    assert v.winner.fit.name == "thermal+leakage"
