@@ -29,6 +29,8 @@ setup(
     entry_points={
         "console_scripts": [
             "actuator_sim = jetpipe_ros.nodes.actuator_sim:main",
+            "controller = jetpipe_ros.nodes.controller:main",
+            "id_recorder = jetpipe_ros.nodes.id_recorder:main",
             "jetpipe = jetpipe_ros.cli:main",
         ],
     },

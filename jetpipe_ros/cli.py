@@ -18,6 +18,7 @@ from jetpipe_ros.model import ParameterError
 #: Modules that contribute a sub-command, in the order ``jetpipe --help`` lists them.
 COMMANDS = (
     "jetpipe_ros.replay",
+    "jetpipe_ros.bag.export",
     "jetpipe_ros.diagnosis.cli",
 )
 

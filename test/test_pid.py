@@ -54,3 +54,15 @@ def test_step_settles_with_the_model(target):
     y = np.array(y)
     assert np.all(np.abs(y[300:] - target) < 5e-4)
     assert np.max(np.sign(target) * (y - target)) < 5e-4
+
+
+def test_config_file_is_the_default():
+    import yaml
+    from pathlib import Path
+
+    from jetpipe_ros.control import SPECS
+
+    path = Path(__file__).resolve().parent.parent / "config" / "controller.yaml"
+    values = yaml.safe_load(path.read_text())["controller"]["ros__parameters"]
+    assert PidConfig.from_mapping({n: values[n] for n in SPECS}) == PidConfig()
+    assert values["enabled"] is True and values["sample_time"] == 0.001

@@ -1,0 +1,156 @@
+"""Convert a campaign bag into the dataset layout of DESIGN.md s.5 (``jetpipe export``).
+
+The ``id_recorder`` marks each experiment with an event on ``/id_recorder/events`` (name, first
+sample's stamp, sample count, piston, role, load). For every complete experiment the export
+takes, at each sample's stamp t_k (simulated time): y and v from ``joint_states``, p1 and p2
+from the pressure topics, and u from ``voltage_applied`` stamped t_k+1 (the command held over
+[t_k, t_k+1)), so row k follows the convention of :func:`jetpipe_ros.model.simulate`. A few
+samples lost in transport are interpolated and counted; more than :data:`MAX_MISSING` of an
+experiment is an error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from rosbags.rosbag2 import Reader
+from rosbags.typesys import get_typestore
+
+from jetpipe_ros.bag.writer import EVENTS_TOPIC, TYPESTORE
+from jetpipe_ros.dataset import DatasetError, Entry, write_dataset
+
+MAX_MISSING = 0.01  #: largest fraction of an experiment's samples that may be interpolated
+#: Stamped topics read, by the suffix their (possibly namespaced) name ends with.
+SIGNALS = ("joint_states", "chamber1/pressure", "chamber2/pressure", "voltage_applied")
+
+
+class BagError(DatasetError):
+    """A bag cannot be exported; the message names the bag and what is missing."""
+
+
+def _find(bag: Path, names: list[str], suffix: str) -> str:
+    hits = [n for n in names if n == f"/{suffix}" or n.endswith(f"/{suffix}")]
+    if len(hits) != 1:
+        raise BagError(f"{bag}: expected one topic ending in {suffix!r}, found "
+                       f"{hits or 'none'} (topics: {', '.join(sorted(names))})")
+    return hits[0]
+
+
+def read_signals(bag: str | Path) -> tuple[dict[str, dict[str, np.ndarray]], list[dict]]:
+    """The stamped signals of a bag and its campaign events.
+
+    Returns ({suffix: {"t": stamps [ns], field: values}}, events): for ``joint_states``
+    the fields y [m] and v [m/s], for the pressures p [Pa], for ``voltage_applied`` u [V];
+    duplicate stamps (a lock-step simulator re-publishing while it waits) are dropped.
+    """
+    bag = Path(bag)
+    if not (bag / "metadata.yaml").is_file():
+        raise BagError(f"{bag}: not a rosbag2 bag (no metadata.yaml)")
+    store = get_typestore(TYPESTORE)
+    with Reader(bag) as reader:
+        names = [c.topic for c in reader.connections]
+        topics = {_find(bag, names, s): s for s in SIGNALS}
+        if EVENTS_TOPIC not in names:
+            raise BagError(f"{bag}: no {EVENTS_TOPIC} topic: not recorded by id_recorder "
+                           f"running a campaign")
+        rows: dict[str, list[tuple[float, ...]]] = {s: [] for s in SIGNALS}
+        events = []
+        wanted = [c for c in reader.connections if c.topic in topics or c.topic == EVENTS_TOPIC]
+        for conn, _, raw in reader.messages(connections=wanted):
+            msg = store.deserialize_cdr(raw, conn.msgtype)
+            if conn.topic == EVENTS_TOPIC:
+                events.append(json.loads(msg.data))
+                continue
+            suffix = topics[conn.topic]
+            stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+            if suffix == "joint_states":
+                rows[suffix].append((stamp, msg.position[0], msg.velocity[0]))
+            elif suffix == "voltage_applied":
+                rows[suffix].append((stamp, msg.position[0]))
+            else:
+                rows[suffix].append((stamp, msg.fluid_pressure))
+    fields = {"joint_states": ("y", "v"), "voltage_applied": ("u",),
+              "chamber1/pressure": ("p",), "chamber2/pressure": ("p",)}
+    signals = {}
+    for suffix, data in rows.items():
+        arr = np.array(data, dtype=float).reshape(-1, 1 + len(fields[suffix]))
+        stamps, first = np.unique(arr[:, 0].astype(np.int64), return_index=True)
+        signals[suffix] = {"t": stamps, **{f: arr[first, i + 1]
+                                           for i, f in enumerate(fields[suffix])}}
+    return signals, events
+
+
+def _at(bag: Path, name: str, sig: dict[str, np.ndarray], key: str,
+        stamps: np.ndarray) -> tuple[np.ndarray, int]:
+    """Values of ``sig[key]`` at ``stamps`` [ns]; missing stamps interpolated; their count."""
+    t = sig["t"]
+    if t.size == 0 or stamps[0] < t[0] or stamps[-1] > t[-1]:
+        raise BagError(f"{bag}: experiment {name}: signal {key} does not cover the "
+                       f"experiment's time span")
+    index = np.searchsorted(t, stamps)
+    found = (index < t.size) & (t[np.minimum(index, t.size - 1)] == stamps)
+    values = np.interp(stamps.astype(float), t.astype(float), sig[key])
+    return values, int(np.count_nonzero(~found))
+
+
+def export_bag(bag: str | Path, out_dir: str | Path, overwrite: bool = False,
+               progress: Callable[[str], None] = print) -> Path:
+    """Write the complete experiments of campaign bag ``bag`` as a dataset in ``out_dir``.
+
+    Each CSV has ``t,u,y,p1,p2,v,f_load``; ``dataset.yaml`` has piston, load_force, role,
+    kind and the number of interpolated samples (``missing_samples``). Written atomically.
+    """
+    bag = Path(bag)
+    signals, events = read_signals(bag)
+    experiments = [e for e in events if e.get("event") == "experiment"]
+    complete = [e for e in experiments if e.get("complete")]
+    for e in experiments:
+        if not e.get("complete"):
+            progress(f"skipping {e['name']}: interrupted after {e['samples']} samples")
+    if not complete:
+        raise BagError(f"{bag}: no complete experiment in the bag")
+    out = []
+    for e in complete:
+        name, n, dt_ns = e["name"], int(e["samples"]), int(round(e["dt"] * 1e9))
+        stamps = int(e["start_ns"]) + dt_ns * np.arange(n, dtype=np.int64)
+        cols: dict[str, np.ndarray] = {"t": np.arange(n) * e["dt"]}
+        missing = 0
+        for key, suffix, at in (("u", "voltage_applied", stamps + dt_ns),
+                                ("y", "joint_states", stamps),
+                                ("p1", "chamber1/pressure", stamps),
+                                ("p2", "chamber2/pressure", stamps),
+                                ("v", "joint_states", stamps)):
+            field = {"p1": "p", "p2": "p"}.get(key, key)
+            cols[key], lost = _at(bag, name, signals[suffix], field, at)
+            missing = max(missing, lost)
+        if missing > MAX_MISSING * n:
+            raise BagError(f"{bag}: experiment {name}: {missing} of {n} samples missing "
+                           f"(more than {MAX_MISSING:.0%})")
+        cols["f_load"] = np.full(n, float(e["load_force"]))
+        out.append((Entry(f"{name}.csv", piston="locked" if e["locked"] else "free",
+                          load_force=float(e["load_force"]), role=e["role"],
+                          extra={"kind": e["kind"], "missing_samples": missing}), cols))
+        progress(f"{name}: {n} samples ({n * e['dt']:.1f} s), {missing} interpolated")
+    return write_dataset(out_dir, out, overwrite=overwrite)
+
+
+def _run(args: argparse.Namespace) -> int:
+    root = export_bag(args.bag, args.dataset_dir, overwrite=args.overwrite)
+    print(f"dataset written to {root}")
+    return 0
+
+
+def add_command(subparsers) -> None:
+    """``jetpipe export BAG DATASET_DIR``: a campaign bag to a dataset."""
+    p = subparsers.add_parser(
+        "export", help="convert an id_recorder campaign bag into a dataset (DESIGN.md s.5)",
+        description="Read a rosbag2 (MCAP) bag recorded by id_recorder and write one CSV per "
+                    "complete experiment (t,u,y,p1,p2,v,f_load) and dataset.yaml.")
+    p.add_argument("bag", help="bag directory (holds metadata.yaml and the .mcap file)")
+    p.add_argument("dataset_dir", help="dataset directory to create")
+    p.add_argument("--overwrite", action="store_true", help="replace a non-empty dataset_dir")
+    p.set_defaults(func=_run)

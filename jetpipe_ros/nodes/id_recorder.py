@@ -1,0 +1,407 @@
+"""id_recorder: run an identification campaign through the topics and record it as a bag.
+
+Records every topic of the contract (``msg_defs/topics.yaml``) to a rosbag2 bag in MCAP
+storage (metadata version 9, :mod:`jetpipe_ros.bag`), the bag's log times being simulated time:
+the header stamp of stamped messages, the latest stamp seen for the others.
+
+``mode: campaign`` (default) runs ``campaign_file`` (default ``config/campaign.yaml``) phase by
+phase (:meth:`jetpipe_ros.campaign.Campaign.schedule`) against a simulator in lock-step
+(``time_mode: sim``, ``lockstep: true``): in open-loop phases the recorder answers every sample
+(``joint_states``) with that sample's ``voltage_cmd``; in closed-loop phases it publishes
+``position_setpoint`` and ``voltage_excitation`` and the ``controller`` node answers. Between
+phases it clamps or releases the piston (the simulator's ``mechanics.locked`` parameter) and
+switches the controller (its ``enabled`` parameter). Each experiment is marked on
+``/id_recorder/events`` so ``jetpipe export BAG DATASET_DIR`` can cut the dataset. The node
+exits when the campaign is done. ``mode: record`` only records, until stopped.
+
+SIGINT/SIGTERM close the bag cleanly: every message received up to the signal stays readable.
+Dropped messages (gaps in the 1 kHz stamps) are counted and reported with the kept fraction.
+
+Run: ``ros2 run jetpipe_ros id_recorder --ros-args -p bag:=bags/run1`` (exit status 2 on bad
+parameters or a bad campaign file, 1 if the simulator or controller cannot be reached).
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import struct
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+
+from jetpipe_ros.bag import BagWriter
+from jetpipe_ros.campaign import Campaign, CampaignError, Phase, load_campaign
+from jetpipe_ros.model.params import ParamSpec
+from jetpipe_ros.nodes import interface
+from jetpipe_ros.nodes.parameters import StartupError, declare, unknown_overrides, value
+
+NODE_NAME = "id_recorder"
+NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
+    ParamSpec("mode", "campaign", "Run the campaign and record, or only record until stopped",
+              choices=("campaign", "record")),
+    ParamSpec("campaign_file", "", "Campaign YAML; empty: the package's config/campaign.yaml"),
+    ParamSpec("bag", "", "Bag directory to create; empty: bags/campaign_<date>_<time>"),
+    ParamSpec("simulator_node", "actuator_sim", "Simulator node (same namespace)"),
+    ParamSpec("controller_node", "controller", "Controller node (same namespace)"),
+    ParamSpec("wait_timeout", 30.0, "Longest wait for the simulator and controller", "s",
+              0.1, 600.0),
+    ParamSpec("sample_time", 0.001, "Period of the stamped streams (gap counting)", "s",
+              1e-5, 1.0),
+    ParamSpec("queue_depth", 1000, "Depth of the recording subscriptions' queues",
+              "messages", 10, 100000),
+]}
+SPIN_TIMEOUT = 0.05  #: [s] EventsExecutor must never spin without a timeout
+NS = 1_000_000_000
+#: Message types whose CDR payload starts with a time stamp (header.stamp or clock).
+STAMPED = ("sensor_msgs/msg/FluidPressure", "sensor_msgs/msg/JointState",
+           "rosgraph_msgs/msg/Clock")
+_STAMP = struct.Struct("<iI")  # after the 4-byte CDR encapsulation header (little endian)
+
+
+def stamp_of(data: bytes) -> int:
+    """The stamp [ns] at the start of a little-endian CDR message (header or clock)."""
+    sec, nanosec = _STAMP.unpack_from(data, 4)
+    return sec * NS + nanosec
+
+
+class Recorder(Node):
+    """The recorder node; raises :class:`StartupError` on bad parameters or campaign."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        errors = declare(self, NODE_SPECS.values(), read_only=True)
+        errors += [f"unknown parameter {n!r}" for n in unknown_overrides(self, NODE_SPECS)]
+        if errors:
+            raise StartupError(errors)
+        self.opts = {n: value(self, n) for n in NODE_SPECS}
+        self.campaign: Campaign | None = None
+        if self.opts["mode"] == "campaign":
+            try:
+                self.campaign = (load_campaign(self.opts["campaign_file"])
+                                 if self.opts["campaign_file"] else _default_campaign())
+            except CampaignError as exc:
+                raise StartupError([str(exc)]) from exc
+        self._dt_ns = round(self.opts["sample_time"] * NS)
+        bag = self.opts["bag"] or f"bags/campaign_{datetime.now():%Y%m%d_%H%M%S}"
+        if Path(bag).exists():
+            raise StartupError([f"parameter bag: {bag} exists; give a new directory"])
+        Path(bag).parent.mkdir(parents=True, exist_ok=True)
+
+        topics = interface.load_topics()
+        self._names = {t.name: self.resolve_topic_name(t.name) for t in topics.values()}
+        self.bag = BagWriter(bag, {self._names[t.name]: t.type for t in topics.values()})
+        self._now_ns = 0  # latest stamp seen [ns, simulated]
+        self._last: dict[str, int] = {}  # latest stamp per stamped topic
+        self._first: dict[str, int] = {}
+        self.dropped: dict[str, int] = {}
+        self.duplicates = 0
+        depth = QoSProfile(depth=self.opts["queue_depth"], history=HistoryPolicy.KEEP_LAST,
+                           reliability=ReliabilityPolicy.RELIABLE)
+        for t in topics.values():
+            name = self._names[t.name]
+            cb = (self._stamped(name) if t.type in STAMPED else self._unstamped(name))
+            self.create_subscription(t.message_class(), t.name, cb, depth, raw=True)
+
+        # Campaign state.
+        self._pubs = {n: interface.publisher(self, n) for n in (
+            "voltage_cmd", "position_setpoint", "voltage_excitation", "load_force")}
+        self._msg = interface.topic("voltage_cmd").message_class()()
+        self._phases: list[Phase] = self.campaign.schedule() if self.campaign else []
+        self._index = 0  # current phase
+        self._start_ns: int | None = None  # stamp of the current phase's first sample
+        self._answered = -1  # latest stamp answered [ns]
+        self._held: int | None = None  # a sample waiting while the rig is switched
+        self._busy = False  # a parameter change is in flight
+        self._locked = False
+        self._controller_on: bool | None = None
+        self._load = 0.0
+        self.ready = self.campaign is None  # record mode records at once
+        self.done = False
+        self.wall_start = time.monotonic()
+        self.sim_start_ns: int | None = None
+        self._sim_params = AsyncParameterClient(self, self.opts["simulator_node"])
+        self._ctl_params = AsyncParameterClient(self, self.opts["controller_node"])
+        what = (f"campaign {self.campaign.source}: {len(self.campaign.experiments)} "
+                f"experiments, {self.campaign.total_duration():.1f} s simulated"
+                if self.campaign else "record only")
+        self.get_logger().info(f"started: {what}; bag {self.bag.path}")
+
+    # -- recording --------------------------------------------------------------------------
+
+    def _stamped(self, name: str):
+        is_joint_states = name == self._names["joint_states"]
+
+        def callback(data: bytes) -> None:
+            stamp = stamp_of(data)
+            last = self._last.get(name)
+            if last is not None and stamp <= last:  # re-published while the sim waits
+                self.duplicates += 1
+                if is_joint_states and self.ready and not self.done:
+                    self._on_sample(stamp)  # answers it if not answered yet
+                return
+            if last is None:
+                self._first[name] = stamp
+            elif stamp - last > self._dt_ns:
+                self.dropped[name] = (self.dropped.get(name, 0)
+                                      + round((stamp - last) / self._dt_ns) - 1)
+            self._last[name] = stamp
+            self._now_ns = max(self._now_ns, stamp)
+            self.bag.write(name, stamp, data)
+            if is_joint_states and self.ready and not self.done:
+                self._on_sample(stamp)
+        return callback
+
+    def _unstamped(self, name: str):
+        def callback(data: bytes) -> None:
+            self.bag.write(name, self._now_ns, data)
+        return callback
+
+    def drained(self) -> bool:
+        """True when every stamped stream has reached the latest stamp seen."""
+        return all(self._last.get(self._names[t]) == self._now_ns for t in (
+            "joint_states", "chamber1/pressure", "chamber2/pressure", "voltage_applied"))
+
+    def kept(self) -> tuple[int, int]:
+        """(samples recorded, samples published) of joint_states, from its stamps."""
+        name = self._names["joint_states"]
+        if name not in self._first:
+            return 0, 0
+        expected = (self._last[name] - self._first[name]) // self._dt_ns + 1
+        return self.bag.counts[name], int(expected)
+
+    def report(self) -> None:
+        """Log counts, drops and (campaign) speed."""
+        kept, expected = self.kept()
+        fraction = kept / expected if expected else math.nan
+        drops = ", ".join(f"{n} {d}" for n, d in sorted(self.dropped.items()) if d) or "none"
+        wall = time.monotonic() - self.wall_start
+        sim = ((self._now_ns - self.sim_start_ns) / NS
+               if self.sim_start_ns is not None else 0.0)
+        self.get_logger().info(
+            f"recorded {kept} of {expected} joint_states samples (kept {100 * fraction:.3f} "
+            f"%), dropped: {drops}; {sim:.2f} s simulated in {wall:.2f} s wall "
+            f"({sim / max(wall, 1e-9):.2f} x real time); bag {self.bag.path}")
+
+    # -- start-up ---------------------------------------------------------------------------
+
+    def connect(self, spin) -> None:
+        """Wait for the simulator (and controller) to be reachable; raise RuntimeError."""
+        deadline = time.monotonic() + self.opts["wait_timeout"]
+        sim = self.opts["simulator_node"]
+
+        def wait(what: str, ok) -> None:
+            while not ok():
+                if time.monotonic() > deadline:
+                    raise RuntimeError(f"{what} not found within {self.opts['wait_timeout']:g}"
+                                       f" s")
+                spin(0.05)
+
+        wait(f"simulator publishing {self._names['joint_states']}",
+             lambda: self.count_publishers(self._names["joint_states"]) > 0
+             and self.count_publishers(self._names["voltage_applied"]) > 0)
+        wait(f"simulator subscribing {self._names['voltage_cmd']}",
+             lambda: self._pubs["voltage_cmd"].get_subscription_count() > 0)
+        wait(f"parameter services of {sim} (is it running?)",
+             lambda: self._sim_params.services_are_ready())
+        assert self.campaign is not None
+        if any(p.command.closed_loop for p in self._phases):
+            wait(f"controller node {self.opts['controller_node']} (needed by the closed-loop "
+                 f"phases; set settle.center: 0 and use open_loop experiments only to run "
+                 f"without it)", lambda: self._ctl_params.services_are_ready())
+            self._set(self._ctl_params, "enabled", False, spin)
+            self._controller_on = False
+        self._set(self._sim_params, "mechanics.locked", False, spin)
+        self.wall_start = time.monotonic()
+        self.ready = True
+        self.get_logger().info("simulator found; campaign running")
+
+    def _set(self, client: AsyncParameterClient, name: str, v: Any, spin) -> None:
+        future = client.set_parameters([Parameter(name, value=v)])
+        while not future.done():
+            spin(0.05)
+        result = future.result().results[0]
+        if not result.successful:
+            raise RuntimeError(f"cannot set {name} = {v}: {result.reason}")
+
+    # -- the campaign -----------------------------------------------------------------------
+
+    def _on_sample(self, stamp: int) -> None:
+        if stamp <= self._answered:
+            return
+        if self._busy:
+            self._held = stamp
+            return
+        if self.sim_start_ns is None:
+            self.sim_start_ns = stamp
+        phase = self._phases[self._index]
+        if self._start_ns is None:  # entering the phase
+            if self._switch(phase):
+                self._held = stamp
+                return
+            self._start_ns = stamp
+            if phase.experiment is not None:
+                self.get_logger().info(f"experiment {phase.label} ({phase.samples} samples)")
+        row = (stamp - self._start_ns) // self._dt_ns
+        if row >= phase.samples:
+            self._finish(phase)
+            if not self.done:
+                self._on_sample(stamp)
+            return
+        cmd = phase.command
+        if cmd.closed_loop:
+            self._publish("position_setpoint", float(cmd.setpoint[row]))
+            self._publish("voltage_excitation", float(cmd.excitation[row]))
+        else:
+            self._publish("voltage_cmd", float(cmd.voltage[row]))
+        self._answered = stamp
+
+    def _publish(self, name: str, v: float) -> None:
+        self._msg.data = v
+        self._pubs[name].publish(self._msg)
+
+    def _switch(self, phase: Phase) -> bool:
+        """Set the rig up for ``phase``; True if a parameter change is now in flight."""
+        if phase.load_force != self._load:
+            self._load = phase.load_force
+            self._publish("load_force", self._load)
+        pending = []
+        if phase.locked != self._locked:
+            pending.append(self._sim_params.set_parameters(
+                [Parameter("mechanics.locked", value=phase.locked)]))
+            self._locked = phase.locked
+        closed = phase.command.closed_loop
+        if self._controller_on is not None and closed != self._controller_on:
+            if closed:  # the controller answers at once when enabled: give it the setpoint
+                self._publish("position_setpoint", float(phase.command.setpoint[0]))
+                self._publish("voltage_excitation", float(phase.command.excitation[0]))
+            pending.append(self._ctl_params.set_parameters([Parameter("enabled", value=closed)]))
+            self._controller_on = closed
+        if not pending:
+            return False
+        self._busy = True
+        remaining = [len(pending)]
+
+        def done(future) -> None:
+            result = future.result().results[0]
+            if not result.successful:
+                self.get_logger().error(f"rig switch refused: {result.reason}")
+            remaining[0] -= 1
+            if remaining[0] == 0:
+                self._busy = False
+                held, self._held = self._held, None
+                if held is not None:
+                    self._resume(held)
+
+        for future in pending:
+            future.add_done_callback(done)
+        return True
+
+    def _resume(self, stamp: int) -> None:
+        phase = self._phases[self._index]
+        self._start_ns = stamp
+        if phase.experiment is not None:
+            self.get_logger().info(f"experiment {phase.label} ({phase.samples} samples)")
+        if phase.command.closed_loop:  # the controller answered on being enabled
+            self._answered = stamp
+            self._publish("position_setpoint", float(phase.command.setpoint[0]))
+        else:
+            self._publish("voltage_cmd", float(phase.command.voltage[0]))
+            self._answered = stamp
+
+    def _finish(self, phase: Phase, complete: bool = True) -> None:
+        """Close the current phase; mark an experiment in the bag."""
+        if phase.experiment is not None and self._start_ns is not None:
+            e = phase.experiment
+            samples = phase.samples if complete else int(
+                (self._answered - self._start_ns) // self._dt_ns + 1)
+            self.bag.event(self._now_ns, event="experiment", name=e.name, kind=e.kind,
+                           locked=e.locked, role=e.role, load_force=e.load_force,
+                           start_ns=self._start_ns, samples=samples,
+                           dt=self.opts["sample_time"], complete=complete)
+        if not complete:
+            return
+        self._index += 1
+        self._start_ns = None
+        if self._index == len(self._phases):
+            self.done = True
+            self.bag.event(self._now_ns, event="campaign_done")
+            self.get_logger().info("campaign done")
+
+    def close(self) -> None:
+        """Mark an interrupted experiment, report, close the bag (idempotent)."""
+        if self.bag.closed:
+            return
+        if self.campaign is not None and not self.done and self._index < len(self._phases):
+            self._finish(self._phases[self._index], complete=False)
+        self.report()
+        self.bag.close()
+
+
+def _default_campaign() -> Campaign:
+    return load_campaign(interface.share_file("config/campaign.yaml"))
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """Run until the campaign is done, or Ctrl-C/SIGTERM; 0, 1 (no simulator) or 2."""
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except Exception as exc:
+        print(f"{NODE_NAME}: error: cannot initialise ROS: {exc}", file=sys.stderr)
+        return 2
+    node = None
+    status = 0
+    try:
+        node = Recorder()
+        executor = EventsExecutor()
+        executor.add_node(node)
+
+        def spin(timeout: float) -> None:
+            if stop.is_set():
+                raise KeyboardInterrupt
+            executor.spin_once(timeout_sec=timeout)
+
+        if node.campaign is not None:
+            node.connect(spin)
+        while not stop.is_set() and not node.done and rclpy.ok():
+            executor.spin_once(timeout_sec=SPIN_TIMEOUT)
+        drain = time.monotonic() + 1.0  # the last sample's other topics are still on the way
+        while node.done and not node.drained() and time.monotonic() < drain:
+            executor.spin_once(timeout_sec=SPIN_TIMEOUT)
+    except StartupError as exc:
+        logger = rclpy.logging.get_logger(NODE_NAME)
+        for message in exc.messages:
+            logger.error(message)
+        logger.error("not started: fix the parameters above")
+        return 2
+    except RuntimeError as exc:
+        rclpy.logging.get_logger(NODE_NAME).error(str(exc))
+        status = 1
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.close()
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())
