@@ -20,6 +20,7 @@ COMMANDS = (
     "jetpipe_ros.replay",
     "jetpipe_ros.bag.export",
     "jetpipe_ros.diagnosis.cli",
+    "jetpipe_ros.identify.cli",
 )
 
 

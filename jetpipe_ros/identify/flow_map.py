@@ -1,0 +1,167 @@
+"""Mass flow map of the valve (Sec. 2.3, Eq. 7-8) from constant-volume charge/discharge tests.
+
+With the piston locked each chamber holds a constant volume, so Eq. 7 gives the mass flow into
+it from its pressure alone: q = V / (r T) dp/dt. The derivative is the zero-phase Savitzky-Golay
+estimate of :mod:`.differentiate`. While a command level is held (after the valve has settled)
+chamber 1 receives q(u_eq, p1) and, by the valve's symmetry (Remark 2), chamber 2 receives
+q(-u_eq, p2), so both chambers give samples of the same map. In steady state the equivalent
+voltage is the command clipped to the jet-pipe's travel, u_eq = clip(u, -2.8, 3.0) V (DESIGN.md
+s.2): the map is fitted against u_eq, so a command beyond the travel (e.g. 3.4 V) adds samples at
+the travel's end. The fit is Eq. 8's fifth-order polynomial in (u [V], p [bar]) by linear least
+squares, in g/s as the paper writes its coefficients.
+
+Samples at or below 1.05 bar are left out: a chamber vented down to atmosphere has no outflow
+whatever the polynomial says (the model's vent floor), which is not the valve's map.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from jetpipe_ros.dataset import DatasetError
+from jetpipe_ros.identify.differentiate import derivative
+from jetpipe_ros.identify.experiments import Recording
+from jetpipe_ros.model.valve import U_EQ_MAX, U_EQ_MIN
+
+#: Exponents (of u, of p) of Eq. 8's 21 monomials, in the paper's order.
+EXPONENTS = [(d - j, j) for d in range(6) for j in range(d + 1)]
+#: Derivative window [s]: 21 ms keeps the curvature bias of a 3.4 V charge below 1e-5 kg/s.
+WINDOW = 0.021
+#: Time after a command change before the valve counts as settled [s] (5 % settling 25.5 ms).
+SETTLE = 0.05
+#: Lowest pressure used [bar]: below it the vent floor, not the map, sets the flow.
+P_FLOOR_BAR = 1.05
+#: Fewest distinct equivalent voltages for a fifth-order polynomial in u.
+MIN_LEVELS = 6
+
+
+def monomials(u: np.ndarray, p_bar: np.ndarray) -> np.ndarray:
+    """(n, 21) matrix of Eq. 8's monomials u^i p^j for voltages ``u`` [V], pressures [bar]."""
+    u = np.asarray(u, dtype=float)[:, None]
+    p = np.asarray(p_bar, dtype=float)[:, None]
+    i, j = np.array(EXPONENTS).T
+    return u ** i * p ** j
+
+
+def evaluate(coefficients: Sequence[float], u: np.ndarray, p_bar: np.ndarray) -> np.ndarray:
+    """Eq. 8 with ``coefficients`` (paper order, g/s): mass flow [kg/s]."""
+    return monomials(np.atleast_1d(u), np.atleast_1d(p_bar)) @ np.asarray(coefficients) * 1e-3
+
+
+@dataclass
+class FlowSamples:
+    """Flow samples of held command levels: equivalent voltage, pressure and mass flow."""
+
+    u: np.ndarray  #: equivalent voltage u_eq [V]
+    p_bar: np.ndarray  #: chamber pressure [bar, absolute]
+    q: np.ndarray  #: mass flow into the chamber [kg/s]
+
+
+@dataclass
+class FlowMapResult:
+    """The identified map and how well it fits its own samples."""
+
+    coefficients: list[float]  #: Eq. 8 coefficients (paper order, u in V, p in bar, g/s)
+    samples: FlowSamples  #: the samples fitted
+    experiments: list[str]  #: names of the charge/discharge tests used
+    max_error: float  #: largest |fit - sample| [kg/s]
+    rms_error: float  #: RMS of fit - sample [kg/s]
+    levels: list[float]  #: distinct equivalent voltages held [V]
+
+    def u_range(self) -> tuple[float, float]:
+        """Identified voltage range [V]."""
+        return float(self.samples.u.min()), float(self.samples.u.max())
+
+    def p_range(self) -> tuple[float, float]:
+        """Identified pressure range [bar]."""
+        return float(self.samples.p_bar.min()), float(self.samples.p_bar.max())
+
+
+def chamber_capacities(params: Mapping[str, Any], y: float) -> tuple[float, float]:
+    """V / (r T) of chambers 1 and 2 at piston position ``y`` [m] (Eq. 7, 13) [kg/Pa]."""
+    rt = params["chamber.gas_constant"] * params["chamber.temperature"]
+    area = params["chamber.piston_area"]
+    return ((area * y + params["chamber.dead_volume_1"]) / rt,
+            (-area * y + params["chamber.dead_volume_2"]) / rt)
+
+
+def held_mask(u: np.ndarray, dt: float, settle: float, tail: float) -> np.ndarray:
+    """Samples at least ``settle`` [s] after and ``tail`` [s] before a command change; the
+    record's start counts as a change (the valve may not be settled there)."""
+    change = np.flatnonzero(np.abs(np.diff(u)) > 1e-9) + 1
+    edges = np.concatenate([[0], change, [u.size]])
+    mask = np.zeros(u.size, dtype=bool)
+    first = round(settle / dt)
+    last = round(tail / dt)
+    for a, b in zip(edges[:-1], edges[1:]):
+        mask[a + first:max(a, b - last)] = True
+    return mask
+
+
+def flow_samples(rec: Recording, params: Mapping[str, Any]) -> FlowSamples:
+    """Eq. 7 samples of both chambers of one locked charge/discharge test."""
+    exp = rec.experiment
+    dt = exp.dt
+    c1, c2 = chamber_capacities(params, float(np.mean(exp.y)))
+    keep = held_mask(exp.u, dt, SETTLE, WINDOW / 2 + 2 * dt)
+    us, ps, qs = [], [], []
+    for sign, p, cap in ((1.0, exp.p1, c1), (-1.0, exp.p2, c2)):
+        q = cap * derivative(p, dt, WINDOW)
+        ok = keep & (p * 1e-5 > P_FLOOR_BAR)
+        us.append(np.clip(sign * exp.u[ok], U_EQ_MIN, U_EQ_MAX))
+        ps.append(p[ok] * 1e-5)
+        qs.append(q[ok])
+    return FlowSamples(np.concatenate(us), np.concatenate(ps), np.concatenate(qs))
+
+
+def identify_flow_map(recs: list[Recording], params: Mapping[str, Any]) -> FlowMapResult:
+    """Fit Eq. 8 to the charge/discharge tests ``recs`` (chamber geometry from ``params``).
+
+    Raises DatasetError when the tests hold fewer than :data:`MIN_LEVELS` distinct equivalent
+    voltages (both chambers counted), too few for a fifth-order polynomial in u.
+    """
+    if not recs:
+        raise DatasetError("flow map: no constant-volume charge/discharge test (piston: locked, "
+                           "piecewise-constant command) in the dataset")
+    parts = [flow_samples(r, params) for r in recs]
+    s = FlowSamples(*(np.concatenate([getattr(x, f) for x in parts]) for f in ("u", "p_bar", "q")))
+    levels = sorted({round(float(v), 3) for v in s.u})
+    if len(levels) < MIN_LEVELS:
+        raise DatasetError(
+            f"flow map: the charge/discharge tests ({', '.join(r.name for r in recs)}) hold "
+            f"{len(levels)} distinct voltage(s) {levels} in both chambers; Eq. 8 needs at least "
+            f"{MIN_LEVELS} (the paper: |u| = 0, 0.29, 0.57, 1.15, 1.73, 2.29, 2.86, 3.4 V)")
+    basis = monomials(s.u, s.p_bar)
+    scale = np.linalg.norm(basis, axis=0)
+    sol, *_ = np.linalg.lstsq(basis / scale, s.q * 1e3, rcond=None)
+    coef = sol / scale
+    resid = basis @ coef * 1e-3 - s.q
+    return FlowMapResult(coefficients=[float(c) for c in coef], samples=s,
+                         experiments=[r.name for r in recs],
+                         max_error=float(np.max(np.abs(resid))),
+                         rms_error=float(np.sqrt(np.mean(resid ** 2))), levels=levels)
+
+
+def invert(coefficients: Sequence[float], q: np.ndarray, p_bar: np.ndarray,
+           start: np.ndarray, iterations: int = 20) -> np.ndarray:
+    """Equivalent voltage u [V] with Eq. 8 q(u, p) = ``q`` [kg/s] at ``p_bar`` [bar].
+
+    Newton's method from ``start`` [V], kept within the jet-pipe's travel [-2.8, 3.0] V, where
+    the map rises with u; where no voltage in the travel gives ``q`` the end of the travel is
+    returned.
+    """
+    coef = np.asarray(coefficients) * 1e-3
+    i, j = np.array(EXPONENTS).T
+    p = np.asarray(p_bar, dtype=float)[:, None]
+    u = np.clip(np.asarray(start, dtype=float), U_EQ_MIN, U_EQ_MAX)
+    for _ in range(iterations):
+        uc = u[:, None]
+        value = (uc ** i * p ** j) @ coef - q
+        slope = (i * uc ** np.maximum(i - 1, 0) * p ** j) @ coef
+        step = value / np.where(slope > 1e-6, slope, 1e-6)
+        u = np.clip(u - step, U_EQ_MIN, U_EQ_MAX)
+    return u

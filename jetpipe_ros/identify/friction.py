@@ -1,0 +1,191 @@
+"""Pressure-dependent static friction (Sec. 4.2, Eq. 18-27) from regulator-held sliding tests.
+
+Each friction test holds the chamber pressures with regulators (Fig. 15; ``regulated: true`` in
+``dataset.yaml``) and lets the piston slide from one end stop towards the other while the load
+that held it (the hydraulic cylinder, measured by the force sensor: column ``f_load``, or the
+entry's constant ``load_force``) is released. Newton's law (Eq. 19) gives the friction force at
+each sample,
+
+    F_f = S (p1 - p2) - F_L - M a,
+
+with velocity and acceleration from the zero-phase differentiator (:mod:`.differentiate`), the
+pressures smoothed over the same window and M the moving mass of the starting parameters. The
+paper reads F_S at the breakaway instant, v_s where the Stribeck dip ends, and F_v, F_C from a
+line through the data outside the Stribeck zone (Sec. 4.2.3). Here those readings only start a
+joint nonlinear least-squares fit of Eq. 18 (scipy.optimize.least_squares) to every sliding
+sample, which uses the whole record instead of three points. Entry phase (p2 > p1, v < 0) and
+exit phase (p1 > p2, v > 0) are fitted apart, each parameter is fitted over the test pressures
+with a plane c0 + c1 p1 + c2 p2 (p in bar, Eq. 20-27), and the planes' largest relative error
+over the tests is reported (the paper: under 5 %).
+
+A test gives parameters only if it slides over a wide enough velocity range to separate the
+Stribeck, Coulomb and viscous parts (released progressively, not in one jump); a phase needs
+three tests at non-collinear pressures for its planes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import optimize, signal
+
+from jetpipe_ros.dataset import DatasetError
+from jetpipe_ros.identify.differentiate import derivative, window_samples
+from jetpipe_ros.identify.experiments import Recording
+from jetpipe_ros.model.params import FRICTION_PLANES
+
+QUANTITIES = ("breakaway", "stribeck_velocity", "viscous", "coulomb")
+PHASES = ("entry", "exit")
+#: Differentiation window for velocity and acceleration [s].
+WINDOW = 0.021
+#: Sliding samples: speed above this [m/s], before reaching within END_MARGIN of the far
+#: end stop [m].
+MIN_SPEED = 2e-3
+END_MARGIN = 1e-3
+#: A test must slide over this ratio of highest to lowest speed, with this many samples.
+MIN_SPEED_RATIO = 5.0
+MIN_SAMPLES = 30
+
+
+@dataclass
+class FrictionTest:
+    """The four Eq. 18 parameters of one test (signed as the model uses them: negative forces
+    and Stribeck velocity in the entry phase)."""
+
+    name: str
+    phase: str  #: entry | exit
+    p1_bar: float  #: regulated chamber 1 pressure [bar]
+    p2_bar: float  #: regulated chamber 2 pressure [bar]
+    values: dict[str, float]  #: quantity -> value [N, m/s, N s/m, N]
+    v: np.ndarray  #: sliding velocities [m/s]
+    force: np.ndarray  #: friction force of Eq. 19 at those samples [N]
+    rms_error: float  #: RMS of Eq. 18 fit - Eq. 19 force [N]
+
+
+@dataclass
+class FrictionResult:
+    """Planes per phase (those with enough tests) and the tests behind them."""
+
+    planes: dict[str, dict[str, list[float]]]  #: phase -> quantity -> [c0, c1, c2]
+    tests: list[FrictionTest]
+    max_relative_error: dict[str, dict[str, float]]  #: phase -> quantity -> plane error [-]
+    skipped: list[str] = field(default_factory=list)  #: tests or phases left out, and why
+
+
+def stribeck(v: np.ndarray, f_s: float, v_s: float, f_v: float, f_c: float) -> np.ndarray:
+    """Eq. 18: sliding friction [N] at velocity ``v`` [m/s] (signed parameters)."""
+    return f_c + (f_s - f_c) * np.exp(-(v / v_s) ** 2) + f_v * v
+
+
+def friction_force(rec: Recording, params: Mapping[str, Any]
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(velocity [m/s], Eq. 19 friction force [N], sliding mask) of one friction test."""
+    exp = rec.experiment
+    dt = exp.dt
+    n = window_samples(WINDOW, dt)
+    v = derivative(exp.y, dt, WINDOW)
+    a = derivative(exp.y, dt, WINDOW, order=2)
+    p1 = signal.savgol_filter(exp.p1, n, 3, mode="interp")
+    p2 = signal.savgol_filter(exp.p2, n, 3, mode="interp")
+    load = exp.f_load if exp.f_load is not None else np.full(exp.t.size, rec.entry.load_force)
+    force = params["chamber.piston_area"] * (p1 - p2) - load - params["mechanics.mass"] * a
+    # Up to the first arrival at the far end stop, less half a window of smeared impact.
+    direction = 1.0 if np.mean(exp.p1) > np.mean(exp.p2) else -1.0
+    arrived = np.flatnonzero(direction * exp.y > 0.5 * params["mechanics.stroke"] - END_MARGIN)
+    stop = arrived[0] - n // 2 if arrived.size else exp.t.size
+    moving = direction * v[:stop] > MIN_SPEED
+    # The piston slides without stopping from breakaway on (the released load only grows), so
+    # the sliding samples are the last unbroken run; earlier runs are noise on a stuck piston.
+    still = np.flatnonzero(~moving)
+    start = still[-1] + 1 if still.size else 0
+    sliding = np.zeros(exp.t.size, dtype=bool)
+    sliding[start:stop] = True
+    return v, force, sliding
+
+
+def fit_test(rec: Recording, params: Mapping[str, Any]) -> FrictionTest:
+    """Fit Eq. 18 to one friction test; raise DatasetError if it cannot separate the terms."""
+    exp = rec.experiment
+    p1_bar, p2_bar = float(np.mean(exp.p1)) * 1e-5, float(np.mean(exp.p2)) * 1e-5
+    phase = "exit" if p1_bar > p2_bar else "entry"
+    s = 1.0 if phase == "exit" else -1.0
+    v, force, sliding = friction_force(rec, params)
+    speed, mag = s * v[sliding], s * force[sliding]
+    if speed.size < MIN_SAMPLES or speed.max() < MIN_SPEED_RATIO * speed.min():
+        span = f"{speed.min():.3g}-{speed.max():.3g} m/s" if speed.size else "none"
+        raise DatasetError(
+            f"friction: test {rec.name} slides over {speed.size} sample(s), speeds {span}; "
+            f"need {MIN_SAMPLES} over a {MIN_SPEED_RATIO:g}x speed range to separate Stribeck, "
+            f"Coulomb and viscous friction: release the piston progressively (record the "
+            f"ramped load in column f_load)")
+    # The paper's readings as the start: a line through the faster half, F_S at the slowest.
+    fast = speed > np.median(speed)
+    f_v0, f_c0 = np.polyfit(speed[fast], mag[fast], 1)
+    slow = speed <= np.quantile(speed, 0.05)
+    start = [max(np.median(mag[slow]), f_c0 + 1.0), 0.01, max(f_v0, 1.0), max(f_c0, 1.0)]
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        return stribeck(speed, *x) - mag
+
+    fit = optimize.least_squares(residual, start, bounds=([0.0, 1e-4, 0.0, 0.0],
+                                                          [1e4, 0.5, 1e5, 1e4]),
+                                 x_scale="jac")
+    f_s, v_s, f_v, f_c = fit.x
+    values = dict(zip(QUANTITIES, (s * f_s, s * v_s, f_v, s * f_c)))
+    return FrictionTest(name=rec.name, phase=phase, p1_bar=p1_bar, p2_bar=p2_bar,
+                        values={k: float(x) for k, x in values.items()}, v=v[sliding],
+                        force=force[sliding], rms_error=float(np.sqrt(np.mean(fit.fun ** 2))))
+
+
+def fit_planes(tests: list[FrictionTest]) -> tuple[dict[str, list[float]], dict[str, float]]:
+    """Planes c0 + c1 p1 + c2 p2 of each quantity over ``tests`` and their largest relative
+    error; raise ValueError if the test pressures are collinear."""
+    basis = np.array([[1.0, t.p1_bar, t.p2_bar] for t in tests])
+    if np.linalg.matrix_rank(basis, tol=1e-3) < 3:
+        raise ValueError("test pressures are collinear")
+    planes, errors = {}, {}
+    for q in QUANTITIES:
+        values = np.array([t.values[q] for t in tests])
+        coef, *_ = np.linalg.lstsq(basis, values, rcond=None)
+        planes[q] = [float(c) for c in coef]
+        errors[q] = float(np.max(np.abs(basis @ coef - values) / np.abs(values)))
+    return planes, errors
+
+
+def identify_friction(recs: list[Recording], params: Mapping[str, Any]) -> FrictionResult:
+    """Friction planes of both phases from the friction tests ``recs``.
+
+    Tests that cannot separate the terms, and phases with fewer than three usable tests at
+    non-collinear pressures, are listed in ``skipped``; DatasetError if no phase remains.
+    """
+    if not recs:
+        raise DatasetError("friction: no friction test (piston: free, regulated: true, the "
+                           "released load in column f_load) in the dataset")
+    tests, skipped = [], []
+    for rec in recs:
+        try:
+            tests.append(fit_test(rec, params))
+        except DatasetError as exc:
+            skipped.append(str(exc))
+    planes, errors = {}, {}
+    for phase in PHASES:
+        mine = [t for t in tests if t.phase == phase]
+        try:
+            if len(mine) < 3:
+                raise ValueError(f"{len(mine)} usable test(s), need 3")
+            planes[phase], errors[phase] = fit_planes(mine)
+        except ValueError as exc:
+            skipped.append(f"friction: {phase} phase planes not identified ({exc}; "
+                           f"{'p2 > p1' if phase == 'entry' else 'p1 > p2'} tests at "
+                           f"non-collinear pressures); keeping the starting planes")
+    if not planes:
+        raise DatasetError("; ".join(skipped))
+    return FrictionResult(planes=planes, tests=tests, max_relative_error=errors, skipped=skipped)
+
+
+def paper_planes(phase: str) -> dict[str, list[float]]:
+    """Eq. 20-23 (entry) or Eq. 24-27 (exit) as quantity -> [c0, c1, c2]."""
+    return {q: list(FRICTION_PLANES[phase][q]) for q in QUANTITIES}
