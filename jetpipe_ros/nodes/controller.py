@@ -10,6 +10,9 @@ warning), anti-windup, output limit, optional friction compensation. Gains and l
 ``enabled`` (parameter, settable at run time) switches the output on and off; the
 ``id_recorder`` turns the controller off for open-loop experiments. When enabled it answers at
 once with the latest position, so a lock-step simulator waiting for a command moves on.
+With ``pace_on_setpoint`` it answers each ``position_setpoint`` message (with the latest
+position) instead of each ``position``: the ``id_recorder`` sets it so that the recorder, which
+publishes one setpoint per recorded sample, paces a lock-step campaign and never falls behind.
 
 Bad messages (NaN, infinite) are ignored with a throttled warning; ``voltage_cmd`` is never
 non-finite. Run: ``ros2 run jetpipe_ros controller --ros-args --params-file
@@ -42,6 +45,8 @@ from jetpipe_ros.nodes.parameters import StartupError, declare, unknown_override
 NODE_NAME = "controller"
 NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
     ParamSpec("enabled", True, "Publish voltage_cmd (false: listen only)"),
+    ParamSpec("pace_on_setpoint", False,
+              "Answer each position_setpoint message instead of each position message"),
     ParamSpec("sample_time", 0.001, "Period of the position messages the law is tuned for",
               "s", 1e-5, 1.0),
 ]}
@@ -55,7 +60,8 @@ class Controller(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
         errors = declare(self, SPECS.values(), read_only=False)
-        errors += declare(self, [NODE_SPECS["enabled"]], read_only=False)
+        errors += declare(self, [NODE_SPECS["enabled"], NODE_SPECS["pace_on_setpoint"]],
+                          read_only=False)
         errors += declare(self, [NODE_SPECS["sample_time"]], read_only=True)
         errors += [f"unknown parameter {n!r}" for n in
                    unknown_overrides(self, [*SPECS, *NODE_SPECS])]
@@ -70,6 +76,7 @@ class Controller(Node):
         assert config is not None
         self.pid = Pid(config, value(self, "sample_time"))
         self.enabled = bool(value(self, "enabled"))
+        self.pace_on_setpoint = bool(value(self, "pace_on_setpoint"))
         self._setpoint: float | None = None  # [m] as received (clamped in the law)
         self._excitation = 0.0  # [V]
         self._y: float | None = None  # latest position [m]
@@ -107,6 +114,8 @@ class Controller(Node):
         if config is not None:
             self.pid.config = config
         for p in params:
+            if p.name == "pace_on_setpoint":
+                self.pace_on_setpoint = bool(p.value)
             if p.name == "enabled" and p.value != self.enabled:
                 self.enabled = bool(p.value)
                 self.pid.reset()
@@ -129,6 +138,8 @@ class Controller(Node):
                 f"position_setpoint {r:g} m outside [{c.setpoint_min:g}, {c.setpoint_max:g}] "
                 f"m; clamped to {clamped:g} m", throttle_duration_sec=WARN_PERIOD)
         self._setpoint = r
+        if self.pace_on_setpoint:
+            self._command()
 
     def _on_excitation(self, msg: Any) -> None:
         if not math.isfinite(msg.data):
@@ -143,7 +154,8 @@ class Controller(Node):
                                       throttle_duration_sec=WARN_PERIOD)
             return
         self._y = msg.data
-        self._command()
+        if not self.pace_on_setpoint:
+            self._command()
 
     def _command(self) -> None:
         """Publish the law's output for the latest position, if enabled and set."""

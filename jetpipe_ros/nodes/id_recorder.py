@@ -8,7 +8,8 @@ the header stamp of stamped messages, the latest stamp seen for the others.
 phase (:meth:`jetpipe_ros.campaign.Campaign.schedule`) against a simulator in lock-step
 (``time_mode: sim``, ``lockstep: true``): in open-loop phases the recorder answers every sample
 (``joint_states``) with that sample's ``voltage_cmd``; in closed-loop phases it publishes
-``position_setpoint`` and ``voltage_excitation`` and the ``controller`` node answers. Between
+``voltage_excitation`` and ``position_setpoint`` and the ``controller`` node (switched to
+``pace_on_setpoint``) answers each setpoint, so the recorder paces every phase. Between
 phases it clamps or releases the piston (the simulator's ``mechanics.locked`` parameter) and
 switches the controller (its ``enabled`` parameter). Each experiment is marked on
 ``/id_recorder/events`` so ``jetpipe export BAG DATASET_DIR`` can cut the dataset. The node
@@ -126,6 +127,7 @@ class Recorder(Node):
         self._answered = -1  # latest stamp answered [ns]
         self._held: int | None = None  # a sample waiting while the rig is switched
         self._busy = False  # a parameter change is in flight
+        self._switch_ns = 0  # latest stamp when it was requested
         self._locked = False
         self._controller_on: bool | None = None
         self._load = 0.0
@@ -151,7 +153,7 @@ class Recorder(Node):
             if last is not None and stamp <= last:  # re-published while the sim waits
                 self.duplicates += 1
                 if is_joint_states and self.ready and not self.done:
-                    self._on_sample(stamp)  # answers it if not answered yet
+                    self._on_kick(stamp)
                 return
             if last is None:
                 self._first[name] = stamp
@@ -223,6 +225,7 @@ class Recorder(Node):
                  f"phases; set settle.center: 0 and use open_loop experiments only to run "
                  f"without it)", lambda: self._ctl_params.services_are_ready())
             self._set(self._ctl_params, "enabled", False, spin)
+            self._set(self._ctl_params, "pace_on_setpoint", True, spin)
             self._controller_on = False
         self._set(self._sim_params, "mechanics.locked", False, spin)
         self.wall_start = time.monotonic()
@@ -239,6 +242,14 @@ class Recorder(Node):
 
     # -- the campaign -----------------------------------------------------------------------
 
+    def _on_kick(self, stamp: int) -> None:
+        """The simulator re-published a sample: it is still waiting for its command."""
+        if stamp > self._answered:
+            self._on_sample(stamp)
+        elif stamp == self._answered and not self._busy and self._start_ns is not None:
+            self._answered = stamp - 1  # the answer went missing: give it again
+            self._on_sample(stamp)
+
     def _on_sample(self, stamp: int) -> None:
         if stamp <= self._answered:
             return
@@ -249,7 +260,7 @@ class Recorder(Node):
             self.sim_start_ns = stamp
         phase = self._phases[self._index]
         if self._start_ns is None:  # entering the phase
-            if self._switch(phase):
+            if self._switch(phase, stamp):
                 self._held = stamp
                 return
             self._start_ns = stamp
@@ -263,8 +274,8 @@ class Recorder(Node):
             return
         cmd = phase.command
         if cmd.closed_loop:
-            self._publish("position_setpoint", float(cmd.setpoint[row]))
             self._publish("voltage_excitation", float(cmd.excitation[row]))
+            self._publish("position_setpoint", float(cmd.setpoint[row]))
         else:
             self._publish("voltage_cmd", float(cmd.voltage[row]))
         self._answered = stamp
@@ -273,8 +284,9 @@ class Recorder(Node):
         self._msg.data = v
         self._pubs[name].publish(self._msg)
 
-    def _switch(self, phase: Phase) -> bool:
-        """Set the rig up for ``phase``; True if a parameter change is now in flight."""
+    def _switch(self, phase: Phase, stamp: int) -> bool:
+        """Set the rig up for ``phase`` starting at sample ``stamp``; True if a parameter
+        change is now in flight (the phase then starts in :meth:`_resume`)."""
         if phase.load_force != self._load:
             self._load = phase.load_force
             self._publish("load_force", self._load)
@@ -286,13 +298,14 @@ class Recorder(Node):
         closed = phase.command.closed_loop
         if self._controller_on is not None and closed != self._controller_on:
             if closed:  # the controller answers at once when enabled: give it the setpoint
-                self._publish("position_setpoint", float(phase.command.setpoint[0]))
                 self._publish("voltage_excitation", float(phase.command.excitation[0]))
+                self._publish("position_setpoint", float(phase.command.setpoint[0]))
             pending.append(self._ctl_params.set_parameters([Parameter("enabled", value=closed)]))
             self._controller_on = closed
         if not pending:
             return False
         self._busy = True
+        self._switch_ns = stamp
         remaining = [len(pending)]
 
         def done(future) -> None:
@@ -311,14 +324,16 @@ class Recorder(Node):
         return True
 
     def _resume(self, stamp: int) -> None:
+        """The rig is set: start the current phase; ``stamp`` is the latest sample."""
         phase = self._phases[self._index]
-        self._start_ns = stamp
         if phase.experiment is not None:
             self.get_logger().info(f"experiment {phase.label} ({phase.samples} samples)")
-        if phase.command.closed_loop:  # the controller answered on being enabled
-            self._answered = stamp
-            self._publish("position_setpoint", float(phase.command.setpoint[0]))
+        if phase.command.closed_loop:
+            # The controller answered the sample of the switch on being enabled: row 0.
+            self._start_ns = self._answered = self._switch_ns
+            self._on_sample(stamp)  # later samples that arrived meanwhile
         else:
+            self._start_ns = stamp
             self._publish("voltage_cmd", float(phase.command.voltage[0]))
             self._answered = stamp
 

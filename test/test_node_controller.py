@@ -1,0 +1,84 @@
+"""controller + actuator_sim in their own processes (real time, namespace /loop)."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+from ros_probe import Probe
+
+NS = "/loop"
+STARTUP = 30.0  # [s] the first numba compile of the kernel takes seconds
+BAND = 5e-4  # [m] settling band: +-0.5 mm
+SETTLE = 1.0  # [s] stated settling time of a 10 mm step (offline: 0.15 s; margin for load)
+
+
+@pytest.fixture(scope="module")
+def loop(module_launch):
+    sim = module_launch(["-m", "jetpipe_ros.nodes.actuator_sim", "--ros-args",
+                         "-r", f"__ns:={NS}", "--params-file", "config/actuator.yaml"])
+    ctl = module_launch(["-m", "jetpipe_ros.nodes.controller", "--ros-args",
+                         "-r", f"__ns:={NS}", "--params-file", "config/controller.yaml"])
+    sim.wait_for("started:", STARTUP)
+    ctl.wait_for("started:", STARTUP)
+    return sim, ctl
+
+
+@pytest.fixture(scope="module")
+def probe(loop, ros_context):
+    probe = Probe(ros_context, namespace=NS)
+    probe.listen("position", "voltage_cmd")
+    probe.repeat(0.05)  # re-publishes probe.command: the setpoint
+    probe.command["position_setpoint"] = 0.0
+    assert probe.spin_until(lambda: len(probe.messages("voltage_cmd")) > 100, 20.0), \
+        "the controller does not answer the simulator"
+    yield probe
+    probe.close()
+
+
+def _settling_time(t: np.ndarray, y: np.ndarray, target: float) -> float:
+    """Time [s] after which y stays within BAND of target (inf if it never does)."""
+    outside = np.flatnonzero(np.abs(y - target) > BAND)
+    if outside.size == 0:
+        return 0.0
+    if outside[-1] == y.size - 1:
+        return math.inf
+    return float(t[outside[-1] + 1] - t[0])
+
+
+def test_step_of_10mm_settles(probe):
+    probe.spin_for(1.0)  # at rest at 0
+    t0 = time.monotonic()
+    probe.command["position_setpoint"] = 0.01
+    probe.publish("position_setpoint", 0.01)
+    probe.spin_for(2.5)
+    log = probe.received["position"]
+    t = np.array([s for s, _ in log if s >= t0])
+    y = np.array([m.data for s, m in log if s >= t0])
+    assert y.size > 500  # of ~2500; a busy test process drops some
+    assert _settling_time(t, y, 0.01) < SETTLE
+    assert np.max(y) < 0.01 + 1e-3  # overshoot below 1 mm
+    u = [m.data for m in probe.messages("voltage_cmd", t0)]
+    assert all(math.isfinite(v) and abs(v) <= 3.0 for v in u)
+
+
+def test_setpoint_outside_stroke_is_clamped_and_warned(loop, probe):
+    _, ctl = loop
+    mark = len(ctl.lines)
+    t0 = time.monotonic()
+    probe.command["position_setpoint"] = 0.1  # 100 mm: beyond the +25 mm end stop
+    probe.spin_for(2.0)
+    line = ctl.wait_for("outside [-0.024, 0.024] m; clamped to 0.024 m", 5.0, start=mark)
+    assert "position_setpoint 0.1 m" in line
+    y = [m.data for m in probe.messages("position", t0 + 1.5)]
+    assert y and abs(np.median(y) - 0.024) < BAND  # held at the clamp, not at the end stop
+    for bad in (math.nan, math.inf):
+        probe.publish("position_setpoint", bad)
+    probe.spin_for(0.5)
+    ctl.wait_for("ignoring non-finite position_setpoint", 5.0, start=mark)
+    assert ctl.popen.poll() is None
+    probe.command["position_setpoint"] = -0.01
+    probe.spin_for(1.5)
+    assert abs(probe.messages("position")[-1].data + 0.01) < BAND  # still in control

@@ -1,0 +1,128 @@
+"""id_recorder + controller + actuator_sim (lock-step) in their own processes: the default
+campaign recorded to an MCAP bag, exported, compared with the offline runner; SIGINT."""
+
+from __future__ import annotations
+
+import json
+import signal
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+from rosbags.rosbag2 import Reader
+
+from jetpipe_ros.bag import EVENTS_TOPIC, export_bag
+from jetpipe_ros.bag.export import BagError
+from jetpipe_ros.campaign import default_campaign, run_campaign_offline
+from jetpipe_ros.dataset import read_dataset
+from jetpipe_ros.model import ModelParams, simulate
+
+STARTUP = 30.0  # [s] first numba compile
+CAMPAIGN = 600.0  # [s] wall-time bound for the default campaign (about 1 min here)
+
+
+def _rig(launch, ns: str) -> None:
+    sim = launch(["-m", "jetpipe_ros.nodes.actuator_sim", "--ros-args", "-r", f"__ns:={ns}",
+                  "--params-file", "config/actuator.yaml", "-p", "time_mode:=sim",
+                  "-p", "lockstep:=true", "-p", "report_period:=0.0"])
+    ctl = launch(["-m", "jetpipe_ros.nodes.controller", "--ros-args", "-r", f"__ns:={ns}",
+                  "--params-file", "config/controller.yaml"])
+    sim.wait_for("started:", STARTUP)
+    ctl.wait_for("started:", STARTUP)
+
+
+def _recorder(launch, ns: str, bag) -> object:
+    return launch(["-m", "jetpipe_ros.nodes.id_recorder", "--ros-args", "-r", f"__ns:={ns}",
+                   "-p", f"bag:={bag}"])
+
+
+@pytest.fixture(scope="module")
+def campaign_bag(module_launch, tmp_path_factory):
+    _rig(module_launch, "/rec")
+    bag = tmp_path_factory.mktemp("bags") / "campaign"
+    rec = _recorder(module_launch, "/rec", bag)
+    rec.wait_for("campaign done", CAMPAIGN)
+    assert rec.popen.wait(30.0) == 0, rec.output
+    return bag, rec
+
+
+def _joint_stamps(bag) -> np.ndarray:
+    with Reader(bag) as reader:
+        conns = [c for c in reader.connections if c.topic.endswith("/joint_states")]
+        from jetpipe_ros.nodes.id_recorder import stamp_of
+        return np.array([stamp_of(raw) for _, _, raw in reader.messages(connections=conns)])
+
+
+def test_full_campaign_keeps_999_per_mille(campaign_bag):
+    bag, rec = campaign_bag
+    stamps = _joint_stamps(bag)
+    expected = (stamps[-1] - stamps[0]) // 1_000_000 + 1
+    assert stamps.size / expected >= 0.999
+    assert np.all(np.diff(stamps) > 0)  # simulated time, no duplicates
+    duration = (stamps[-1] - stamps[0]) / 1e9
+    assert duration == pytest.approx(default_campaign().total_duration(), abs=0.5)
+    line = rec.wait_for("joint_states samples (kept", 1.0)
+    assert "dropped: none" in line or "kept 99.9" in line or "kept 100.000" in line
+
+
+def test_bag_is_readable_by_rosbags_and_mcap(campaign_bag):
+    bag, _ = campaign_bag
+    meta = (bag / "metadata.yaml").read_text()
+    assert "version: 9" in meta and "storage_identifier: mcap" in meta
+    with Reader(bag) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        total = reader.message_count
+    assert {"/rec/position", "/rec/chamber1/pressure", "/rec/voltage_applied", "/clock",
+            "/rec/voltage_cmd", "/rec/position_setpoint", EVENTS_TOPIC} <= set(counts)
+    (mcap_file,) = bag.glob("*.mcap")
+    with open(mcap_file, "rb") as f:
+        n = sum(1 for _ in make_reader(f).iter_messages())
+    assert n == total > 90_000 * 5
+
+
+def test_export_round_trip_matches_the_offline_runner(campaign_bag, tmp_path):
+    bag, _ = campaign_bag
+    exported = read_dataset(export_bag(bag, tmp_path / "ros", progress=lambda _: None))
+    plan = default_campaign()
+    assert [e.name for e in exported.entries] == [e.name for e in plan.experiments]
+    offline = read_dataset(run_campaign_offline(ModelParams(), plan, tmp_path / "offline"))
+    for (entry, ros), (_, off), spec in zip(exported, offline, plan.experiments):
+        assert entry.role == spec.role and entry.locked == spec.locked
+        assert entry.extra["missing_samples"] == 0
+        # Every row replays through the model from its first sample: u is what was applied.
+        start = ModelParams().with_values({
+            "mechanics.initial_position": float(ros.y[0]), "mechanics.locked": entry.locked,
+            "chamber.initial_pressure_1": float(ros.p1[0]),
+            "chamber.initial_pressure_2": float(ros.p2[0])})
+        trace = simulate(start, ros.u)
+        assert np.max(np.abs(trace.y - ros.y)) < 1e-6, entry.name
+        assert np.max(np.abs(trace.p1 - ros.p1)) < 1.0, entry.name
+        if not spec.closed_loop:  # the plan's voltages, in lock-step, as offline
+            assert np.max(np.abs(ros.u - off.u)) < 1e-6, entry.name
+            assert np.max(np.abs(ros.p1 - off.p1)) < 2000.0, entry.name
+
+
+def test_sigint_leaves_a_readable_bag(launch, tmp_path):
+    _rig(launch, "/int")
+    bag = tmp_path / "interrupted"
+    rec = _recorder(launch, "/int", bag)
+    rec.wait_for("experiment charge_0p57V", STARTUP + 60.0)
+    rec.popen.send_signal(signal.SIGINT)
+    assert rec.popen.wait(20.0) == 0, rec.output
+    assert (bag / "metadata.yaml").is_file()
+    with Reader(bag) as reader:
+        events = [json.loads(raw[8:-1].decode()) for c, _, raw in reader.messages()
+                  if c.topic == EVENTS_TOPIC]
+        js = next(c for c in reader.connections if c.topic.endswith("/joint_states"))
+        assert js.msgcount > 6000  # the first charge/discharge (6.2 s) and more
+    assert events[0]["name"] == "charge_0p29V" and events[0]["complete"]
+    assert events[-1]["name"] == "charge_0p57V" and not events[-1]["complete"]
+    messages = []
+    data = read_dataset(export_bag(bag, tmp_path / "data", progress=messages.append))
+    assert [e.name for e in data.entries] == ["charge_0p29V"]
+    assert any("skipping charge_0p57V" in m for m in messages)
+
+
+def test_export_refuses_a_bag_without_campaign(tmp_path):
+    with pytest.raises(BagError, match="not a rosbag2 bag"):
+        export_bag(tmp_path, tmp_path / "out")
