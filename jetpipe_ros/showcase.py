@@ -1,14 +1,27 @@
-"""The showcase run by the README's first command.
+"""The showcase run by the README's first command: the paper's campaign through ROS, recorded.
 
-Replays the paper's validation inputs (Sec. 6: square waves 0.6 V at 0.1122 Hz and 3 V at
-0.97 Hz) through the nominal model and through a stand-in for real hardware (the nominal model
-with an unmodelled valve lag switched on), writes both as dataset CSVs, plots them, and prints the
-valve figures next to the paper's.
+Steps, in order (each a function below, so a later step is a small addition to :func:`main`):
+
+1. the valve figures of the nominal model beside the paper's;
+2. start ``actuator_sim`` as the stand-in for real hardware: the nominal model with one
+   unmodelled effect of DESIGN.md s.3 switched on (a 20 Hz valve lag) and sensor noise, in
+   simulated time, lock-step; and the ``controller``;
+3. run the default campaign (``config/campaign.yaml``) with ``id_recorder`` into an MCAP bag;
+4. export the bag to a dataset (``jetpipe export``);
+5. plot the recorded validation square waves against the nominal model replayed from the same
+   commands, and print where everything is.
+
+ROS traffic stays on this machine (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` unless set) and
+in the namespace ``/showcase``; every process started here is stopped on exit.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import shutil
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -19,11 +32,17 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import signal  # noqa: E402
 
-from jetpipe_ros.dataset import write_experiment  # noqa: E402
+from jetpipe_ros.bag import export_bag  # noqa: E402
+from jetpipe_ros.dataset import Dataset, read_dataset  # noqa: E402
 from jetpipe_ros.model import ModelParams, simulate  # noqa: E402
 from jetpipe_ros.model.valve import valve_tf  # noqa: E402
+from jetpipe_ros.nodes.interface import share_file  # noqa: E402
 
-EXPERIMENTS = {"square_0p6V_0p1122Hz": (0.6, 0.1122, 20.0), "square_3V_0p97Hz": (3.0, 0.97, 5.0)}
+NAMESPACE = "/showcase"
+STANDIN = {"effect": "valve_lag", "corner_frequency": 20.0}  #: the "real" hardware's effect
+PLOTTED = ("square_0p6V_0p1122Hz", "square_3V_0p97Hz")  #: the paper's validation inputs
+STARTUP = 60.0  #: [s] longest wait for a node to start (first numba compile)
+CAMPAIGN_TIMEOUT = 1800.0  #: [s] longest wait for the campaign
 
 
 def valve_figures(params: ModelParams) -> dict[str, float]:
@@ -40,50 +59,154 @@ def valve_figures(params: ModelParams) -> dict[str, float]:
             "settling_s": t[outside[-1] + 1]}
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the showcase; returns the exit status."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default="out/showcase", help="output directory")
-    args = parser.parse_args(argv)
-    out = Path(args.out)
-    nominal = ModelParams()
-    real = nominal.with_effect("valve_lag", corner_frequency=20.0).with_values(
-        {"sensors.noise": True, "sensors.seed": 1})
-
-    fig = valve_figures(nominal)
+def print_valve_figures() -> None:
+    """Step 1: the nominal valve chain beside the paper's measurements."""
+    fig = valve_figures(ModelParams())
     print("Valve chain (DESIGN.md s.2)    model     paper (measured)")
     print(f"  gain peak                 {fig['peak_hz']:6.1f} Hz  ~49 Hz")
     print(f"  overshoot                 {fig['overshoot'] * 100:6.1f} %")
     print(f"  rise 10-90 %              {fig['rise_s'] * 1e3:6.1f} ms   6 ms")
     print(f"  settling 5 %              {fig['settling_s'] * 1e3:6.1f} ms  36 ms")
 
-    figure, axes = plt.subplots(len(EXPERIMENTS), 1, figsize=(10, 7), constrained_layout=True)
-    for ax, (name, (amp, freq, duration)) in zip(axes, EXPERIMENTS.items()):
-        t = np.arange(0, duration, 1e-3)
-        u = np.where(np.sin(2 * np.pi * freq * t) >= 0, amp, -amp)
-        start = time.perf_counter()
-        runs = {"nominal": simulate(nominal, u), "stand-in (valve_lag 20 Hz)": simulate(real, u)}
-        wall = time.perf_counter() - start
-        for label, tr in runs.items():
-            tag = "nominal" if label == "nominal" else "standin"
-            write_experiment(out / f"{name}_{tag}.csv",
-                             {"t": tr.t, "u": tr.u, "y": tr.y_meas, "p1": tr.p1_meas,
-                              "p2": tr.p2_meas, "v": tr.v})
-            ax.plot(tr.t, tr.y_meas * 1e3, label=label)
-        gap = runs["stand-in (valve_lag 20 Hz)"].y_meas - runs["nominal"].y_meas
-        rel = np.sqrt(np.mean(gap**2)) / np.ptp(runs["nominal"].y) * 100
-        print(f"{name}: {duration:.0f} s simulated twice in {wall * 1e3:.0f} ms; "
-              f"position gap stand-in vs nominal {rel:.1f} % of travel (RMS)")
-        ax.set_title(f"square wave {amp} V peak, {freq} Hz")
+
+class Nodes:
+    """The ROS processes of the showcase; their output goes to ``logs/<name>.log``."""
+
+    def __init__(self, logs: Path) -> None:
+        self.logs = logs
+        logs.mkdir(parents=True, exist_ok=True)
+        self.env = dict(os.environ, PYTHONUNBUFFERED="1")
+        self.env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        self.procs: dict[str, subprocess.Popen] = {}
+
+    def start(self, name: str, ros_args: list[str]) -> subprocess.Popen:
+        """Start node module ``jetpipe_ros.nodes.<name>`` in the showcase namespace."""
+        log = (self.logs / f"{name}.log").open("w")
+        proc = subprocess.Popen(
+            [sys.executable, "-m", f"jetpipe_ros.nodes.{name}", "--ros-args",
+             "-r", f"__ns:={NAMESPACE}", *ros_args],
+            stdout=log, stderr=subprocess.STDOUT, env=self.env)
+        self.procs[name] = proc
+        return proc
+
+    def wait_for(self, name: str, text: str, timeout: float) -> str:
+        """The first line of ``name``'s log containing ``text``; RuntimeError on timeout."""
+        deadline = time.monotonic() + timeout
+        path = self.logs / f"{name}.log"
+        while time.monotonic() < deadline:
+            for line in path.read_text().splitlines():
+                if text in line:
+                    return line
+            if self.procs[name].poll() is not None:
+                break
+            time.sleep(0.2)
+        raise RuntimeError(f"{name} did not print {text!r}; see {path}")
+
+    def stop(self) -> None:
+        """SIGTERM every process still running, then wait (kill after 10 s)."""
+        for proc in self.procs.values():
+            if proc.poll() is None:
+                proc.terminate()
+        for proc in self.procs.values():
+            try:
+                proc.wait(10.0)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+
+
+def start_standin(nodes: Nodes, out: Path) -> ModelParams:
+    """Step 2: the simulator as stand-in hardware (lock-step, simulated time), the controller."""
+    standin = ModelParams().with_effect(
+        STANDIN["effect"], corner_frequency=STANDIN["corner_frequency"]).with_values(
+        {"sensors.noise": True, "sensors.seed": 1})
+    params_file = out / "standin.yaml"
+    params_file.write_text(standin.to_ros_yaml(only_changed=True))
+    nodes.start("actuator_sim", ["--params-file", str(share_file("config/actuator.yaml")),
+                                 "--params-file", str(params_file), "-p", "time_mode:=sim",
+                                 "-p", "lockstep:=true", "-p", "report_period:=0.0"])
+    nodes.start("controller", ["--params-file", str(share_file("config/controller.yaml"))])
+    print(f"\nStand-in hardware: actuator_sim with {STANDIN['effect']} "
+          f"({STANDIN['corner_frequency']:g} Hz) and sensor noise ({params_file})")
+    for name in ("actuator_sim", "controller"):
+        nodes.wait_for(name, "started:", STARTUP)
+    return standin
+
+
+def record_campaign(nodes: Nodes, bag: Path) -> str:
+    """Step 3: the default campaign through controller and recorder; the recorder's summary."""
+    print("Running the default campaign (config/campaign.yaml) in lock-step ...")
+    start = time.monotonic()
+    rec = nodes.start("id_recorder", ["-p", f"bag:={bag}"])
+    seen = 0
+    path = nodes.logs / "id_recorder.log"
+    while rec.poll() is None and time.monotonic() - start < CAMPAIGN_TIMEOUT:
+        lines = path.read_text().splitlines()
+        for line in lines[seen:]:
+            if "experiment " in line:
+                print("  " + line.split("]: ", 1)[-1])
+        seen = len(lines)
+        time.sleep(0.5)
+    if rec.poll() != 0:
+        raise RuntimeError(f"id_recorder failed (exit {rec.poll()}); see {path}")
+    summary = nodes.wait_for("id_recorder", "joint_states samples", 1.0).split("]: ", 1)[-1]
+    print(f"  {summary}")
+    return summary
+
+
+def plot_square_waves(data: Dataset, out: Path) -> Path:
+    """Step 5: recorded validation square waves vs the nominal model on the same commands."""
+    nominal = ModelParams()
+    figure, axes = plt.subplots(len(PLOTTED), 1, figsize=(10, 7), constrained_layout=True)
+    for ax, name in zip(axes, PLOTTED):
+        entry, exp = next((e, x) for e, x in data if e.name == name)
+        start = nominal.with_values({"mechanics.initial_position": float(exp.y[0]),
+                                     "chamber.initial_pressure_1": float(exp.p1[0]),
+                                     "chamber.initial_pressure_2": float(exp.p2[0])})
+        model = simulate(start, exp.u)
+        gap = exp.y - model.y
+        rel = np.sqrt(np.mean(gap ** 2)) / np.ptp(exp.y) * 100
+        print(f"  {name}: position gap recorded vs nominal model {rel:.1f} % of travel (RMS)")
+        ax.plot(exp.t, exp.y * 1e3, label=f"recorded (stand-in, {STANDIN['effect']})")
+        ax.plot(model.t, model.y * 1e3, label="nominal model, same command")
+        ax.set_title(f"{name} ({entry.role})")
         ax.set_xlabel("t [s]")
         ax.set_ylabel("y [mm]")
         ax.legend(loc="upper right")
     plot = out / "showcase.png"
     figure.savefig(plot, dpi=110)
-    print(f"\nDatasets (t,u,y,p1,p2,v CSVs) and plot written to {out.resolve()}")
-    print(f"  plot: {plot.resolve()}")
-    print("Next: run the simulator node:  .venv/bin/actuator_sim --ros-args "
-          "--params-file config/actuator.yaml")
+    return plot
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the showcase; returns the exit status."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", default="out/showcase", help="output directory")
+    args = parser.parse_args(argv)
+    out = Path(args.out).resolve()
+    for stale in ("bag", "dataset", "logs"):  # a previous run's results
+        shutil.rmtree(out / stale, ignore_errors=True)
+    out.mkdir(parents=True, exist_ok=True)
+
+    print_valve_figures()
+    nodes = Nodes(out / "logs")
+    try:
+        start_standin(nodes, out)
+        record_campaign(nodes, out / "bag")
+    finally:
+        nodes.stop()
+    print("Exporting the bag (jetpipe export) ...")
+    dataset = export_bag(out / "bag", out / "dataset", progress=lambda _: None)
+    data = read_dataset(dataset)
+    print(f"  {len(data)} experiments, {sum(x.t.size for _, x in data)} samples")
+    plot = plot_square_waves(data, out)
+
+    print(f"\nResults in {out}")
+    print(f"  bag (rosbag2, MCAP, metadata v9): {out / 'bag'}")
+    print(f"  dataset (DESIGN.md s.5):          {dataset}")
+    print(f"  plot:                             {plot}")
+    print(f"  node logs:                        {out / 'logs'}")
+    print(f"Next: jetpipe diagnose {dataset} --out {out / 'diagnosis'}")
     return 0
 
 

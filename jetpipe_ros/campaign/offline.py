@@ -4,7 +4,8 @@ The runner follows :meth:`Campaign.schedule` exactly as the ``id_recorder`` node
 the topics: one actuator for the whole campaign, its state carried from phase to phase, the
 piston clamped and released between phases (:func:`~jetpipe_ros.campaign.rig.reconfigure`),
 closed-loop phases through the same :class:`~jetpipe_ros.control.Pid` as the ``controller``
-node. Row k of an experiment's CSV holds what the sensors read at t_k = k dt and the command
+node (one controller for the campaign, its state carried from one closed-loop phase to the next,
+as the node's). Row k of an experiment's CSV holds what the sensors read at t_k = k dt and the command
 applied over [t_k, t_k+1), the convention of :func:`jetpipe_ros.model.simulate`.
 """
 
@@ -34,7 +35,6 @@ def _run_phase(act: Actuator, pid: Pid, phase: Phase, out: np.ndarray) -> dict[s
         assert cmd.setpoint is not None and cmd.excitation is not None
         rows = np.empty((n, k.N_OUT))
         u = np.empty(n)
-        pid.reset()
         for i in range(n):
             rows[i] = out
             u[i] = pid.update(float(cmd.setpoint[i]), out[k.OUT_Y_MEAS],

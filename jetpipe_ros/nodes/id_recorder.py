@@ -8,10 +8,11 @@ the header stamp of stamped messages, the latest stamp seen for the others.
 phase (:meth:`jetpipe_ros.campaign.Campaign.schedule`) against a simulator in lock-step
 (``time_mode: sim``, ``lockstep: true``): in open-loop phases the recorder answers every sample
 (``joint_states``) with that sample's ``voltage_cmd``; in closed-loop phases it publishes
-``voltage_excitation`` and ``position_setpoint`` and the ``controller`` node (switched to
-``pace_on_setpoint``) answers each setpoint, so the recorder paces every phase. Between
-phases it clamps or releases the piston (the simulator's ``mechanics.locked`` parameter) and
-switches the controller (its ``enabled`` parameter). Each experiment is marked on
+``voltage_excitation`` and ``position_setpoint`` and the ``controller`` node, switched to
+``pace_on_setpoint`` for the campaign (and back at the end), answers each setpoint. Exactly one
+command answers each sample, so the recorder paces every phase and the plan's commands land on
+the planned samples. Between phases it clamps or releases the piston (the simulator's
+``mechanics.locked`` parameter) while the simulator waits. Each experiment is marked on
 ``/id_recorder/events`` so ``jetpipe export BAG DATASET_DIR`` can cut the dataset. The node
 exits when the campaign is done. ``mode: record`` only records, until stopped.
 
@@ -127,9 +128,8 @@ class Recorder(Node):
         self._answered = -1  # latest stamp answered [ns]
         self._held: int | None = None  # a sample waiting while the rig is switched
         self._busy = False  # a parameter change is in flight
-        self._switch_ns = 0  # latest stamp when it was requested
         self._locked = False
-        self._controller_on: bool | None = None
+        self._paced = False  # the controller was switched to pace_on_setpoint
         self._load = 0.0
         self.ready = self.campaign is None  # record mode records at once
         self.done = False
@@ -224,9 +224,10 @@ class Recorder(Node):
             wait(f"controller node {self.opts['controller_node']} (needed by the closed-loop "
                  f"phases; set settle.center: 0 and use open_loop experiments only to run "
                  f"without it)", lambda: self._ctl_params.services_are_ready())
-            self._set(self._ctl_params, "enabled", False, spin)
+            self._set(self._ctl_params, "enabled", False, spin)  # enabling resets the PID
             self._set(self._ctl_params, "pace_on_setpoint", True, spin)
-            self._controller_on = False
+            self._set(self._ctl_params, "enabled", True, spin)
+            self._paced = True
         self._set(self._sim_params, "mechanics.locked", False, spin)
         self.wall_start = time.monotonic()
         self.ready = True
@@ -260,7 +261,7 @@ class Recorder(Node):
             self.sim_start_ns = stamp
         phase = self._phases[self._index]
         if self._start_ns is None:  # entering the phase
-            if self._switch(phase, stamp):
+            if self._switch(phase):
                 self._held = stamp
                 return
             self._start_ns = stamp
@@ -284,9 +285,9 @@ class Recorder(Node):
         self._msg.data = v
         self._pubs[name].publish(self._msg)
 
-    def _switch(self, phase: Phase, stamp: int) -> bool:
-        """Set the rig up for ``phase`` starting at sample ``stamp``; True if a parameter
-        change is now in flight (the phase then starts in :meth:`_resume`)."""
+    def _switch(self, phase: Phase) -> bool:
+        """Set the rig up for ``phase``; True if a parameter change is now in flight (the
+        phase then starts in :meth:`_resume`)."""
         if phase.load_force != self._load:
             self._load = phase.load_force
             self._publish("load_force", self._load)
@@ -295,17 +296,9 @@ class Recorder(Node):
             pending.append(self._sim_params.set_parameters(
                 [Parameter("mechanics.locked", value=phase.locked)]))
             self._locked = phase.locked
-        closed = phase.command.closed_loop
-        if self._controller_on is not None and closed != self._controller_on:
-            if closed:  # the controller answers at once when enabled: give it the setpoint
-                self._publish("voltage_excitation", float(phase.command.excitation[0]))
-                self._publish("position_setpoint", float(phase.command.setpoint[0]))
-            pending.append(self._ctl_params.set_parameters([Parameter("enabled", value=closed)]))
-            self._controller_on = closed
         if not pending:
             return False
         self._busy = True
-        self._switch_ns = stamp
         remaining = [len(pending)]
 
         def done(future) -> None:
@@ -324,18 +317,12 @@ class Recorder(Node):
         return True
 
     def _resume(self, stamp: int) -> None:
-        """The rig is set: start the current phase; ``stamp`` is the latest sample."""
+        """The rig is set: start the current phase at the waiting sample ``stamp``."""
+        self._start_ns = stamp
         phase = self._phases[self._index]
         if phase.experiment is not None:
             self.get_logger().info(f"experiment {phase.label} ({phase.samples} samples)")
-        if phase.command.closed_loop:
-            # The controller answered the sample of the switch on being enabled: row 0.
-            self._start_ns = self._answered = self._switch_ns
-            self._on_sample(stamp)  # later samples that arrived meanwhile
-        else:
-            self._start_ns = stamp
-            self._publish("voltage_cmd", float(phase.command.voltage[0]))
-            self._answered = stamp
+        self._on_sample(stamp)
 
     def _finish(self, phase: Phase, complete: bool = True) -> None:
         """Close the current phase; mark an experiment in the bag."""
@@ -364,6 +351,16 @@ class Recorder(Node):
             self._finish(self._phases[self._index], complete=False)
         self.report()
         self.bag.close()
+
+    def release_controller(self, spin) -> None:
+        """Give the controller back its own pace (answering positions), best effort."""
+        if self._paced:
+            self._paced = False
+            future = self._ctl_params.set_parameters(
+                [Parameter("pace_on_setpoint", value=False)])
+            deadline = time.monotonic() + 2.0
+            while not future.done() and time.monotonic() < deadline:
+                spin(0.05)
 
 
 def _default_campaign() -> Campaign:
@@ -413,6 +410,7 @@ def main(args: Sequence[str] | None = None) -> int:
     finally:
         if node is not None:
             node.close()
+            node.release_controller(lambda t: executor.spin_once(timeout_sec=t))
             node.destroy_node()
         rclpy.try_shutdown()
     return status
