@@ -121,7 +121,8 @@ def start_standin(nodes: Nodes, out: Path) -> ModelParams:
         STANDIN["effect"], corner_frequency=STANDIN["corner_frequency"]).with_values(
         {"sensors.noise": True, "sensors.seed": 1})
     params_file = out / "standin.yaml"
-    params_file.write_text(standin.to_ros_yaml(only_changed=True))
+    # "/**/" so that the file applies to the node in the showcase namespace.
+    params_file.write_text(standin.to_ros_yaml(node_name="/**/actuator_sim", only_changed=True))
     nodes.start("actuator_sim", ["--params-file", str(share_file("config/actuator.yaml")),
                                  "--params-file", str(params_file), "-p", "time_mode:=sim",
                                  "-p", "lockstep:=true", "-p", "report_period:=0.0"])

@@ -63,6 +63,6 @@ def test_config_file_is_the_default():
     from jetpipe_ros.control import SPECS
 
     path = Path(__file__).resolve().parent.parent / "config" / "controller.yaml"
-    values = yaml.safe_load(path.read_text())["controller"]["ros__parameters"]
+    values = yaml.safe_load(path.read_text())["/**/controller"]["ros__parameters"]
     assert PidConfig.from_mapping({n: values[n] for n in SPECS}) == PidConfig()
     assert values["enabled"] is True and values["sample_time"] == 0.001

@@ -63,6 +63,8 @@ NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
               0.1, 600.0),
     ParamSpec("sample_time", 0.001, "Period of the stamped streams (gap counting)", "s",
               1e-5, 1.0),
+    ParamSpec("lead", 4, "Open-loop phases: commands sent ahead of the samples (pipelining; "
+              "the simulator still steps once per command)", "samples", 1, 8),
     ParamSpec("queue_depth", 1000, "Depth of the recording subscriptions' queues",
               "messages", 10, 100000),
 ]}
@@ -126,6 +128,7 @@ class Recorder(Node):
         self._index = 0  # current phase
         self._start_ns: int | None = None  # stamp of the current phase's first sample
         self._answered = -1  # latest stamp answered [ns]
+        self._sent = -1  # highest row of the current phase whose command was sent
         self._held: int | None = None  # a sample waiting while the rig is switched
         self._busy = False  # a parameter change is in flight
         self._locked = False
@@ -148,6 +151,8 @@ class Recorder(Node):
         is_joint_states = name == self._names["joint_states"]
 
         def callback(data: bytes) -> None:
+            if self.bag.closed:
+                return
             stamp = stamp_of(data)
             last = self._last.get(name)
             if last is not None and stamp <= last:  # re-published while the sim waits
@@ -169,7 +174,8 @@ class Recorder(Node):
 
     def _unstamped(self, name: str):
         def callback(data: bytes) -> None:
-            self.bag.write(name, self._now_ns, data)
+            if not self.bag.closed:
+                self.bag.write(name, self._now_ns, data)
         return callback
 
     def drained(self) -> bool:
@@ -248,7 +254,9 @@ class Recorder(Node):
         if stamp > self._answered:
             self._on_sample(stamp)
         elif stamp == self._answered and not self._busy and self._start_ns is not None:
-            self._answered = stamp - 1  # the answer went missing: give it again
+            # The simulator lacks this sample's command (a race at a switch): send it again.
+            self._sent = (stamp - self._start_ns) // self._dt_ns - 1
+            self._answered = stamp - 1
             self._on_sample(stamp)
 
     def _on_sample(self, stamp: int) -> None:
@@ -265,6 +273,7 @@ class Recorder(Node):
                 self._held = stamp
                 return
             self._start_ns = stamp
+            self._sent = -1
             if phase.experiment is not None:
                 self.get_logger().info(f"experiment {phase.label} ({phase.samples} samples)")
         row = (stamp - self._start_ns) // self._dt_ns
@@ -274,11 +283,15 @@ class Recorder(Node):
                 self._on_sample(stamp)
             return
         cmd = phase.command
-        if cmd.closed_loop:
+        if cmd.closed_loop:  # the controller answers the setpoint with this sample's position
             self._publish("voltage_excitation", float(cmd.excitation[row]))
             self._publish("position_setpoint", float(cmd.setpoint[row]))
-        else:
-            self._publish("voltage_cmd", float(cmd.voltage[row]))
+            self._sent = row
+        else:  # keep `lead` commands in flight, never beyond the phase
+            last = min(row + self.opts["lead"], phase.samples) - 1
+            for r in range(max(row, self._sent + 1), last + 1):
+                self._publish("voltage_cmd", float(cmd.voltage[r]))
+            self._sent = max(self._sent, last)
         self._answered = stamp
 
     def _publish(self, name: str, v: float) -> None:
@@ -319,6 +332,7 @@ class Recorder(Node):
     def _resume(self, stamp: int) -> None:
         """The rig is set: start the current phase at the waiting sample ``stamp``."""
         self._start_ns = stamp
+        self._sent = -1
         phase = self._phases[self._index]
         if phase.experiment is not None:
             self.get_logger().info(f"experiment {phase.label} ({phase.samples} samples)")
@@ -409,8 +423,8 @@ def main(args: Sequence[str] | None = None) -> int:
         pass
     finally:
         if node is not None:
-            node.close()
             node.release_controller(lambda t: executor.spin_once(timeout_sec=t))
+            node.close()
             node.destroy_node()
         rclpy.try_shutdown()
     return status
