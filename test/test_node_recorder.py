@@ -129,3 +129,12 @@ def test_sigint_leaves_a_readable_bag(launch, tmp_path):
 def test_export_refuses_a_bag_without_campaign(tmp_path):
     with pytest.raises(BagError, match="not a rosbag2 bag"):
         export_bag(tmp_path, tmp_path / "out")
+
+
+def test_export_refuses_an_unreadable_bag(tmp_path):
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "metadata.yaml").write_text("rosbag2_bagfile_information: [\n")
+    with pytest.raises(BagError, match="unreadable bag"):
+        export_bag(bad, tmp_path / "out")
+    assert not (tmp_path / "out").exists()

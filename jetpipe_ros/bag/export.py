@@ -17,7 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from rosbags.rosbag2 import Reader
+from rosbags.rosbag2 import Reader, ReaderError
 from rosbags.typesys import get_typestore
 
 from jetpipe_ros.bag.writer import EVENTS_TOPIC, TYPESTORE
@@ -51,6 +51,13 @@ def read_signals(bag: str | Path) -> tuple[dict[str, dict[str, np.ndarray]], lis
     if not (bag / "metadata.yaml").is_file():
         raise BagError(f"{bag}: not a rosbag2 bag (no metadata.yaml)")
     store = get_typestore(TYPESTORE)
+    try:
+        return _read(bag, store)
+    except ReaderError as exc:
+        raise BagError(f"{bag}: unreadable bag: {exc}") from None
+
+
+def _read(bag: Path, store) -> tuple[dict[str, dict[str, np.ndarray]], list[dict]]:
     with Reader(bag) as reader:
         names = [c.topic for c in reader.connections]
         topics = {_find(bag, names, s): s for s in SIGNALS}
