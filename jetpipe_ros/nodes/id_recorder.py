@@ -134,7 +134,7 @@ class Recorder(Node):
         self._locked = False
         self._paced = False  # the controller was switched to pace_on_setpoint
         self._load = 0.0
-        self.ready = self.campaign is None  # record mode records at once
+        self.ready = False  # campaign mode: the simulator and controller are set up
         self.done = False
         self.wall_start = time.monotonic()
         self.sim_start_ns: int | None = None
@@ -157,7 +157,7 @@ class Recorder(Node):
             last = self._last.get(name)
             if last is not None and stamp <= last:  # re-published while the sim waits
                 self.duplicates += 1
-                if is_joint_states and self.ready and not self.done:
+                if is_joint_states and self.driving:
                     self._on_kick(stamp)
                 return
             if last is None:
@@ -167,8 +167,10 @@ class Recorder(Node):
                                       + round((stamp - last) / self._dt_ns) - 1)
             self._last[name] = stamp
             self._now_ns = max(self._now_ns, stamp)
+            if self.sim_start_ns is None:
+                self.sim_start_ns = stamp
             self.bag.write(name, stamp, data)
-            if is_joint_states and self.ready and not self.done:
+            if is_joint_states and self.driving:
                 self._on_sample(stamp)
         return callback
 
@@ -177,6 +179,11 @@ class Recorder(Node):
             if not self.bag.closed:
                 self.bag.write(name, self._now_ns, data)
         return callback
+
+    @property
+    def driving(self) -> bool:
+        """True while the campaign runs (samples are answered)."""
+        return self.ready and not self.done
 
     def drained(self) -> bool:
         """True when every stamped stream has reached the latest stamp seen."""
@@ -265,8 +272,6 @@ class Recorder(Node):
         if self._busy:
             self._held = stamp
             return
-        if self.sim_start_ns is None:
-            self.sim_start_ns = stamp
         phase = self._phases[self._index]
         if self._start_ns is None:  # entering the phase
             if self._switch(phase):
