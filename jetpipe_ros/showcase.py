@@ -9,7 +9,9 @@ Steps, in order (each a function below, so a later step is a small addition to :
 3. run the default campaign (``config/campaign.yaml``) with ``id_recorder`` into an MCAP bag;
 4. export the bag to a dataset (``jetpipe export``);
 5. plot the recorded validation square waves against the nominal model replayed from the same
-   commands, and print where everything is.
+   commands;
+6. diagnose the gap (``jetpipe diagnose``) without being told the stand-in's effect, compare the
+   verdict with the truth, and print where everything is.
 
 ROS traffic stays on this machine (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` unless set) and
 in the namespace ``/showcase``; every process started here is stopped on exit.
@@ -179,13 +181,28 @@ def plot_square_waves(data: Dataset, out: Path) -> Path:
     return plot
 
 
+def diagnose_gap(dataset: Path, out: Path) -> dict:
+    """Step 6: the sim-to-real gap diagnosis of the recorded dataset, judged against the truth."""
+    from jetpipe_ros.diagnosis.diagnose import diagnose
+
+    print("Diagnosing the gap between the nominal model and the recording (jetpipe diagnose) ...")
+    result = diagnose(dataset, out)
+    v, g = result["verdict"], result["gap"]
+    params = ", ".join(f"{k} {x:.3g}" for k, x in v["params"].items())
+    print(f"  verdict: {v['effect']} ({params}), confidence {v['confidence']:.2f}; the stand-in "
+          f"has {STANDIN['effect']} at {STANDIN['corner_frequency']:g} Hz")
+    print(f"  held-out gap ({g['metric']}): nominal {g['nominal']:.2f} % -> augmented "
+          f"{g['augmented']:.2f} % (shrinkage {100 * g['shrinkage']:.0f} %)")
+    return result
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the showcase; returns the exit status."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="out/showcase", help="output directory")
     args = parser.parse_args(argv)
     out = Path(args.out).resolve()
-    for stale in ("bag", "dataset", "logs"):  # a previous run's results
+    for stale in ("bag", "dataset", "logs", "diagnosis"):  # a previous run's results
         shutil.rmtree(out / stale, ignore_errors=True)
     out.mkdir(parents=True, exist_ok=True)
 
@@ -201,13 +218,15 @@ def main(argv: list[str] | None = None) -> int:
     data = read_dataset(dataset)
     print(f"  {len(data)} experiments, {sum(x.t.size for _, x in data)} samples")
     plot = plot_square_waves(data, out)
+    diagnose_gap(dataset, out / "diagnosis")
 
     print(f"\nResults in {out}")
     print(f"  bag (rosbag2, MCAP, metadata v9): {out / 'bag'}")
     print(f"  dataset (DESIGN.md s.5):          {dataset}")
     print(f"  plot:                             {plot}")
+    print(f"  diagnosis report:                 {out / 'diagnosis' / 'report.html'}")
+    print(f"  improved model (loads in the sim): {out / 'diagnosis' / 'augmented.yaml'}")
     print(f"  node logs:                        {out / 'logs'}")
-    print(f"Next: jetpipe diagnose {dataset} --out {out / 'diagnosis'}")
     return 0
 
 

@@ -50,6 +50,7 @@ def test_heat_transfer_thermal_spans_adiabatic_to_isothermal():
 
 
 def test_multi_element_hysteresis_keeps_the_width_but_rounds_the_corner():
+    """Prandtl-Ishlinskii loop: thresholds evenly in w (1 +- spread)."""
     u = np.concatenate([np.linspace(-2, 2, 2000), np.linspace(2, -2, 2000)])
     w = 0.25
 
@@ -68,6 +69,15 @@ def test_multi_element_hysteresis_keeps_the_width_but_rounds_the_corner():
     k = 2000 + 200 + 10
     assert single[k] == pytest.approx(single[1990:2030].max(), abs=0.005)
     assert multi[1990:2030].max() - multi[k] == pytest.approx(0.075, abs=0.01)
+    # spread 0.5: thresholds 5w/8, 7w/8, 9w/8, 11w/8; a play follows once the input has fallen
+    # twice its threshold: only the smallest, by 0.4 - 0.3125 V, mean 0.021875 V; spread 0 is
+    # the single loop.
+    half = simulate(LOCKED.with_effect("valve_hysteresis", half_width=w, elements=4,
+                                       spread=0.5), u).u_eq
+    assert half[1990:2030].max() - half[k] == pytest.approx(0.021875, abs=0.005)
+    sharp = simulate(LOCKED.with_effect("valve_hysteresis", half_width=w, elements=4,
+                                        spread=0.0), u).u_eq
+    np.testing.assert_allclose(sharp, single, atol=1e-12)
 
 
 def test_regulated_pressures_give_the_viscous_steady_velocity_of_eq19():

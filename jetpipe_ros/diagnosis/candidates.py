@@ -5,7 +5,9 @@ could show the effect at all.
 Ranges are wider than the typical sizes of DESIGN.md s.3 so a real effect is not clipped, and each
 contains the value at which the effect vanishes (zero delay, hysteresis, leak, bias; n = 1; the
 nominal supply and mass; a corner or bristle stiffness high enough to be invisible), so a fit to
-data without the effect can land on "no effect".
+data without the effect can land on "no effect". Where the form of an effect is uncertain, a knob
+spans the forms: the hysteresis is eight play operators whose thresholds spread from one sharp
+loop (spread 0) to a rounded Prandtl-Ishlinskii loop (spread 1).
 """
 
 from __future__ import annotations
@@ -28,6 +30,8 @@ class Knob:
     high: float
     off: float  #: the value at which the effect vanishes (or is invisibly small)
     log: bool = False  #: search on a logarithmic scale
+    #: other values of a later knob the starting grid also tries (a knob that selects a form)
+    tries: tuple[float, ...] = ()
 
     def to_value(self, z: float) -> float:
         """Map z in [0, 1] onto the range."""
@@ -74,8 +78,9 @@ CANDIDATES: dict[str, Candidate] = {c.effect: c for c in (
     Candidate("valve_delay", (Knob("delay", 0.0, 0.008, 0.0),), {"delay": 0.003}),
     Candidate("valve_lag", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),),
               {"corner_frequency": 30.0}),
-    Candidate("valve_hysteresis", (Knob("half_width", 0.0, 0.6, 0.0),), {"half_width": 0.25},
-              {"elements": 1}),
+    Candidate("valve_hysteresis", (Knob("half_width", 0.0, 0.6, 0.0),
+                                   Knob("spread", 0.0, 1.0, 0.0, tries=(1.0,))),
+              {"half_width": 0.25, "spread": 0.0}, {"elements": 8}),
     Candidate("supply_pressure", (Knob("pressure", 4e5, 1.1e6, 1e6),), {"pressure": 8e5}),
     Candidate("thermal", (Knob("polytropic_index", 1.0, 1.4, 1.0),), {"polytropic_index": 1.2},
               {"form": "polytropic"}),

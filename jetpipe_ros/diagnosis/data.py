@@ -9,6 +9,7 @@ three, else the last 30 % of each experiment.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -150,6 +151,15 @@ def prepare(dataset: Dataset) -> Prepared:
         prepared.notes.append("all experiments are locked-piston tests: the mechanics "
                               "(friction, mass) cannot be judged")
     return prepared
+
+
+def swapped(prepared: Prepared) -> Prepared:
+    """The same data with the roles exchanged: fit on the holdout, judge on the training data
+    (the second fold of a two-fold cross-validation). The noise floor is not carried over."""
+    records = [dataclasses.replace(r, train=r.holdout, holdout=r.train)
+               for r in prepared.records]
+    return dataclasses.replace(prepared, records=records, floor={},
+                               split_note=f"roles exchanged ({prepared.split_note})")
 
 
 def _record(entry: Entry, exp: Experiment, dt: float, held: bool, by_time: bool) -> Record:

@@ -4,7 +4,8 @@ causes it, and how far the gap shrinks once that effect is modelled (DESIGN.md s
 Steps, each reported as progress: read and split the dataset; score the nominal model and locate
 its gap (signals, subsystems, regimes, frequency bands); check which candidates the experiments
 could show at all; fit every candidate on the training data (in parallel processes) and score it
-on the held-out data; try pairs when one effect leaves a significant gap; decide; write
+on the held-out data; try pairs when one effect leaves a significant gap; cross-check, with the
+roles of the data exchanged, a candidate the short holdout cannot confirm alone; decide; write
 ``diagnosis.json``, ``report.html`` and ``augmented.yaml``. The outputs are written to a temporary
 directory and moved into place only when all three are complete.
 """
@@ -19,20 +20,19 @@ import tempfile
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from itertools import combinations
 from pathlib import Path
 
 import numpy as np
 
 from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate
-from jetpipe_ros.diagnosis.data import SIGNALS, Prepared, prepare
+from jetpipe_ros.diagnosis.data import SIGNALS, Prepared, prepare, swapped
 from jetpipe_ros.diagnosis.fit import Fit, fit
 from jetpipe_ros.diagnosis.localize import by_regime, frequency_response, position_error_pct
 from jetpipe_ros.diagnosis.noise_floor import calibrate
 from jetpipe_ros.diagnosis.prediction import HORIZON, predict
 from jetpipe_ros.diagnosis.score import METRIC, predict_all, score, window_errors
-from jetpipe_ros.diagnosis.verdict import Ranked, Verdict, decide, needs_pairs, rank
+from jetpipe_ros.diagnosis.verdict import Ranked, Verdict, decide, needs_pairs, paired_t, rank
 from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError, simulate
 
 SCHEMA = "jetpipe.diagnosis/1"
@@ -40,7 +40,8 @@ OUTPUTS = ("diagnosis.json", "report.html", "augmented.yaml")
 #: Candidates whose typical-size signature is below this fraction of the noise variance are
 #: reported as invisible in the experiments given.
 VISIBLE = 0.02
-PAIR_POOL = 3
+#: Candidates refitted jointly with the best single effect as pairs.
+PAIR_POOL = 2
 
 
 class Progress:
@@ -83,6 +84,41 @@ def fit_all(prepared: Prepared, nominal: ModelParams, jobs: Sequence[tuple[str, 
                      f"({f.evaluations} runs, {f.seconds:.1f} s)")
     order = {names: i for i, names in enumerate(jobs)}
     return sorted(fits, key=lambda f: order[f.effects])
+
+
+def fit_pairs(best: Fit, candidates: Sequence[Candidate], prepared: Prepared,
+              nominal: ModelParams, workers: int, progress: Callable[[str], None]) -> list[Fit]:
+    """Pairs by forward selection: every other candidate fitted on top of the best single
+    effect (held at its fitted values), the :data:`PAIR_POOL` that lower the training error
+    most then refitted jointly with it. Selection uses the training data only."""
+    (first,) = best.effects
+    others = [c.effect for c in candidates if c.effect != first]
+    progress(f"{first} leaves {best.holdout.gap:.2f} % of the gap: fitting each other "
+             f"candidate on top of it")
+    added = fit_all(prepared, best.params, [(e,) for e in others], {}, workers, progress)
+    chosen = sorted(added, key=lambda f: f.train.total)[:PAIR_POOL]
+    pairs = [(first, f.effects[0]) for f in chosen]
+    starts = {(first, f.effects[0]): np.array(
+        [k.to_unit(v[e][k.name]) for e, v in ((first, best.values), (f.effects[0], f.values))
+         for k in CANDIDATES[e].knobs]) for f in chosen}
+    progress(f"refitting {', '.join('+'.join(p) for p in pairs)} jointly")
+    return fit_all(prepared, nominal, pairs, starts, workers, progress)
+
+
+def cross_check(ranking: Sequence[Ranked], prepared: Prepared, nominal: ModelParams,
+                nominal_preds, workers: int, progress: Callable[[str], None]) -> None:
+    """Refit the candidates the holdout alone cannot confirm on the holdout, judge them on the
+    training data, and store the paired t in their ranking rows (:attr:`Ranked.t_cross`)."""
+    todo = [r for r in ranking if r.needs_cross_check]
+    if not todo:
+        return
+    other = swapped(prepared)
+    before = window_errors(other, nominal_preds, "holdout")
+    progress(f"cross-check of {', '.join(r.fit.name for r in todo)}: refitted on the holdout, "
+             f"judged on the training data")
+    fits = fit_all(other, nominal, [r.fit.effects for r in todo], {}, workers, progress)
+    for r, f in zip(todo, fits):
+        r.t_cross = paired_t(before, f.holdout_windows)
 
 
 def visibility(prepared: Prepared, nominal: ModelParams, base_preds, cand: Candidate) -> float:
@@ -195,18 +231,10 @@ def diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams |
     progress(f"fitting {len(candidates)} candidates on the training data ({workers} processes)")
     fits = fit_all(prepared, nominal, [(c.effect,) for c in candidates], {}, workers, progress)
     ranking = rank(fits, nom_hold, nom_windows, prepared.dt)
-    singles = {f.effects[0]: f for f in fits}
     if ranking and needs_pairs(ranking[0], nom_hold):
-        pool = [r.fit.effects[0] for r in ranking if r.improvement > 0][:PAIR_POOL]
-        pairs = list(combinations(pool, 2))
-        if pairs:
-            progress(f"the best single effect leaves {ranking[0].fit.holdout.gap:.2f} %: "
-                     f"fitting {len(pairs)} pairs")
-            starts = {p: np.concatenate([
-                np.array([k.to_unit(singles[e].values[e][k.name]) for k in CANDIDATES[e].knobs])
-                for e in p]) for p in pairs}
-            fits += fit_all(prepared, nominal, pairs, starts, workers, progress)
-            ranking = rank(fits, nom_hold, nom_windows, prepared.dt)
+        fits += fit_pairs(ranking[0].fit, candidates, prepared, nominal, workers, progress)
+        ranking = rank(fits, nom_hold, nom_windows, prepared.dt)
+    cross_check(ranking, prepared, nominal, nom_all, workers, progress)
     verdict = decide(ranking, nom_hold)
 
     progress("scoring the augmented model")

@@ -2,8 +2,8 @@
 
 One knob: a coarse grid over the whole range (the landscape of a delay, quantised to sub-steps,
 is flat in places and may have several minima), then a bounded Brent search around the best grid
-point. Several knobs: a grid over the first from the vanishing point of the others, then bounded
-least squares (trust-region reflective) on the residual vector. Every fit has a budget of model
+point. Several knobs: a grid over the first from the vanishing point of the others (and from each
+value a form-selecting knob lists in ``tries``), then bounded least squares (trust-region reflective) on the residual vector. Every fit has a budget of model
 evaluations and keeps the best point it has seen.
 """
 
@@ -119,13 +119,21 @@ def fit(prepared: Prepared, nominal: ModelParams, candidates: Sequence[Candidate
 
 def _grid_first_knob(obj: _Objective) -> np.ndarray:
     base = np.concatenate([c.start() for c in obj.candidates])
+    knobs = [k for c in obj.candidates for k in c.knobs]
+    bases = [base]
+    for i, k in enumerate(knobs[1:], 1):
+        for value in k.tries:
+            b = base.copy()
+            b[i] = k.to_unit(value)
+            bases.append(b)
     best, best_cost = base, np.inf
-    for g in np.linspace(0.0, 1.0, GRID):
-        z = base.copy()
-        z[0] = g
-        c = obj.cost(z)
-        if c < best_cost:
-            best, best_cost = z, c
+    for b in bases:
+        for g in np.linspace(0.0, 1.0, GRID):
+            z = b.copy()
+            z[0] = g
+            c = obj.cost(z)
+            if c < best_cost:
+                best, best_cost = z, c
     return best
 
 

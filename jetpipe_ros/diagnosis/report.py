@@ -193,6 +193,17 @@ def _table(rows: list[list], header: list[str]) -> str:
     return f"<table><tr>{head}</tr>{body}</table>"
 
 
+def _params_text(params: dict) -> str:
+    """Fitted parameters as text; a pair's are prefixed with their effect."""
+    flat = {}
+    for k, v in params.items():
+        if isinstance(v, dict):
+            flat.update({f"{k}.{kk}": vv for kk, vv in v.items()})
+        else:
+            flat[k] = v
+    return ", ".join(f"{k}={v:.3g}" for k, v in flat.items() if isinstance(v, (int, float)))
+
+
 def _cell(c) -> str:
     if isinstance(c, float):
         return f"{c:.4g}"
@@ -217,9 +228,9 @@ def render(result: dict, prepared: Prepared, preds: dict) -> str:
     metric_rows = [[k, paper["nominal"].get(k), paper["augmented"].get(k)]
                    for k in paper["nominal"]]
     rank_rows = [[r["effect"], r["subsystem"], r["train_gap"], r["holdout_gap"],
-                  f"{100 * r['shrinkage']:.0f} %", "yes" if r["explains"] else "no",
-                  ", ".join(f"{k}={v:.3g}" for k, v in r["params"].items()
-                            if isinstance(v, float))]
+                  f"{100 * r['shrinkage']:.0f} %", r["t"], r["t_cross_check"],
+                  "yes" if r["explains"] else "no",
+                  _params_text(r["params"])]
                  for r in result["ranking"]]
     vis = result["visibility"]["at_typical_size"]
     vis_rows = [[e, x, "yes" if x >= result["visibility"]["threshold"] else "no"]
@@ -243,7 +254,8 @@ def render(result: dict, prepared: Prepared, preds: dict) -> str:
         f"{loc['horizon_s']:g}-s prediction horizons.</p>",
         ranking_figure(result),
         _table(rank_rows, ["candidate", "subsystem", "train gap %", "held-out gap %",
-                           "shrinkage", "explains", "fitted parameters"]),
+                           "shrinkage", "paired t", "t cross-check", "explains",
+                           "fitted parameters"]),
         "<h2>Model against data</h2>", overlay_figure(prepared, preds, result),
         "<h2>Where the gap lies</h2>", "<h3>By regime (held out)</h3>",
         regime_figure(result), "<h3>By frequency</h3>", frequency_figure(result),

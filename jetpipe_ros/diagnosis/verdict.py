@@ -6,7 +6,10 @@ improvement is significant, so fitting noise is not mistaken for an effect: eith
 t-test over the prediction windows (the errors of one window are correlated, different windows
 nearly independent) gives t >= :data:`MIN_T`, or the error removed exceeds the whole noise floor
 (an improvement concentrated in a few windows, e.g. the locked-piston tests, is real when it is
-larger than anything noise could produce). Candidates are ranked by a Bayesian information criterion
+larger than anything noise could produce), or, when the holdout is too short to tell, a cross-check
+confirms it: the candidate refitted on the holdout and judged on the training data (the second
+fold of a two-fold cross-validation, both judgements out of sample) gives a t that, combined with
+the first by Stouffer's rule, (t + t_cross) / sqrt(2) >= :data:`MIN_T`. Candidates are ranked by a Bayesian information criterion
 over the held-out error with one sample per signal and window, so an extra parameter must pay for
 itself; a pair must also remove :data:`PAIR_GAIN` more of the gap than its better member, with
 significance, or the single effect is preferred.
@@ -40,7 +43,7 @@ MIN_T = 3.0
 PAIR_GAIN = 0.15
 AMBIGUOUS = 1.25
 #: A winner leaving more than this fraction of the gap (and a gap above NOISE_GAP) tries pairs.
-PAIR_IF_LEFT = 0.3
+PAIR_IF_LEFT = 0.15
 #: A gap below this [%] that no candidate significantly reduces is reported as noise.
 NOISE_GAP = 0.5
 
@@ -55,12 +58,26 @@ class Ranked:
     t: float  #: paired t statistic of the improvement over the prediction windows
     removed_over_floor: float  #: held-out error removed / the noise floor's error
     bic: float
+    #: paired t of the cross-check (fitted on the holdout, judged on the training data), if run
+    t_cross: float | None = None
+
+    @property
+    def significant(self) -> bool:
+        """True when the held-out improvement is more than noise (see the module text)."""
+        combined = (self.t + self.t_cross) / math.sqrt(2.0) if self.t_cross is not None else 0.0
+        return self.t >= MIN_T or self.removed_over_floor >= 1.0 or combined >= MIN_T
+
+    @property
+    def needs_cross_check(self) -> bool:
+        """True when the candidate removes enough of the gap but the holdout alone cannot show
+        that the improvement is more than noise."""
+        return (self.shrinkage >= MIN_SHRINKAGE and not self.significant and self.t > 0.0
+                and self.t_cross is None)
 
     @property
     def explains(self) -> bool:
         """True when the fit removes a significant part of the gap."""
-        return self.shrinkage >= MIN_SHRINKAGE and (self.t >= MIN_T or
-                                                    self.removed_over_floor >= 1.0)
+        return self.shrinkage >= MIN_SHRINKAGE and self.significant
 
     def to_json(self, nominal: Score) -> dict:
         """The ranking row of diagnosis.json."""
@@ -70,6 +87,7 @@ class Ranked:
                 "params": self.fit.values if len(effects) > 1 else self.fit.values[effects[0]],
                 "train_gap": self.fit.train.gap, "holdout_gap": self.fit.holdout.gap,
                 "shrinkage": self.shrinkage, "explains": self.explains, "t": self.t,
+                "t_cross_check": self.t_cross,
                 "removed_over_noise_floor": self.removed_over_floor,
                 "holdout_by_signal": self.fit.holdout.to_json(), "bic": self.bic,
                 "evaluations": self.fit.evaluations, "fit_seconds": self.fit.seconds}
@@ -135,7 +153,8 @@ class Verdict:
 
 def decide(ranking: Sequence[Ranked], nominal: Score) -> Verdict:
     """Choose the answer from a ranking (singles and pairs together)."""
-    best_shrink = max((_clip(r.shrinkage) * _clip(max(r.t / MIN_T, r.removed_over_floor))
+    best_shrink = max((_clip(r.shrinkage) * (1.0 if r.significant else
+                                             _clip(max(r.t / MIN_T, r.removed_over_floor)))
                        for r in ranking), default=0.0)
     explaining = [r for r in ranking if r.explains and
                   (len(r.fit.effects) == 1 or _pair_pays(r, ranking))]

@@ -37,8 +37,9 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
     noise = p["sensors.noise"]
     half_width = effect("valve_hysteresis", "half_width", 0.0)
     n_play = p["effects.valve_hysteresis.elements"] if half_width > 0.0 else 0
-    # Thresholds spread evenly over (0, 2 half_width), mean half_width; one element: half_width.
-    hysteresis = half_width * (2.0 * np.arange(1, n_play + 1) - 1.0) / max(n_play, 1)
+    # Thresholds evenly in half_width * (1 +- spread), mean half_width; one element: half_width.
+    offsets = (2.0 * np.arange(1, n_play + 1) - 1.0) / max(n_play, 1) - 1.0  # in (-1, 1)
+    hysteresis = half_width * (1.0 + p["effects.valve_hysteresis.spread"] * offsets)
     thermal = p["effects.thermal.enabled"]
     heat_transfer = thermal and p["effects.thermal.form"] == "heat_transfer"
     leakage = p["effects.leakage.enabled"]

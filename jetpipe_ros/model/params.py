@@ -159,6 +159,9 @@ _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
            0.0, 2.0),
         _p("elements", 1, "Play operators in parallel (1 = one sharp loop; more = a rounded "
            "Prandtl-Ishlinskii loop, thresholds spread evenly around half_width)", "", 1, 8),
+        _p("spread", 1.0, "Spread of the play thresholds as a fraction of half_width: they lie "
+           "evenly in half_width * (1 +- spread) (0 = all equal, one sharp loop; 1 = from 0 "
+           "to twice half_width)", "", 0.0, 1.0),
     ],
     "supply_pressure": [_p("pressure", 8e5, "Supply pressure (absolute)", "Pa", 2e5, 1.2e6)],
     "thermal": [
