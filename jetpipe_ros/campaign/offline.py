@@ -2,7 +2,8 @@
 
 The runner follows :meth:`Campaign.schedule` exactly as the ``id_recorder`` node does through
 the topics: one actuator for the whole campaign, its state carried from phase to phase, the
-piston clamped and released between phases (:func:`~jetpipe_ros.campaign.rig.reconfigure`),
+piston clamped and released and the chambers' regulators switched between phases
+(:meth:`~jetpipe_ros.campaign.Phase.rig_changes`, :func:`~jetpipe_ros.campaign.rig.reconfigure`),
 closed-loop phases through the same :class:`~jetpipe_ros.control.Pid` as the ``controller``
 node (one controller for the campaign, its state carried from one closed-loop phase to the next,
 as the node's). Row k of an experiment's CSV holds what the sensors read at t_k = k dt and the command
@@ -43,13 +44,15 @@ def _run_phase(act: Actuator, pid: Pid, phase: Phase, out: np.ndarray) -> dict[s
     else:
         assert cmd.voltage is not None
         u = np.asarray(cmd.voltage, dtype=float)
-        after = act.run(u, phase.load_force)
+        load = cmd.load if cmd.load is not None else phase.load_force
+        after = act.run(u, load)
         rows = np.vstack([out[None, :], after[:-1]])
         out[:] = after[-1]
     limit = act.constants.u_limit
     cols = {"t": np.arange(n) * act.constants.dt, "u": np.clip(u, -limit, limit)}
     cols.update({name: rows[:, i] for name, i in _COLUMNS.items()})
-    cols["f_load"] = np.full(n, phase.load_force)
+    cols["f_load"] = (np.array(cmd.load, dtype=float) if cmd.load is not None
+                      else np.full(n, phase.load_force))
     if cmd.closed_loop:
         cols["setpoint"] = np.clip(cmd.setpoint, pid.config.setpoint_min,
                                    pid.config.setpoint_max)
@@ -74,8 +77,9 @@ def run_campaign_offline(params: ModelParams, campaign: Campaign, out_dir: str |
 
     Returns:
         The dataset directory. Each CSV has ``t,u,y,p1,p2`` (sensor readings), ``v`` (true
-        velocity), ``f_load`` and, for closed-loop experiments, ``setpoint`` [m];
-        ``dataset.yaml`` gives piston, load_force, role and kind (open_loop | closed_loop).
+        velocity), ``f_load`` [N] and, for closed-loop experiments, ``setpoint`` [m];
+        ``dataset.yaml`` gives piston, load_force, role, kind (open_loop | closed_loop) and
+        ``regulated: true`` for the regulated friction tests (what ``jetpipe identify`` reads).
     """
     changes: dict[str, object] = {"integration.sample_time": campaign.sample_time,
                                   "mechanics.locked": False}
@@ -86,12 +90,16 @@ def run_campaign_offline(params: ModelParams, campaign: Campaign, out_dir: str |
     out = act.outputs()
     experiments = []
     for phase in campaign.schedule():
-        if phase.locked != act.params["mechanics.locked"]:
-            reconfigure(act, {"mechanics.locked": phase.locked})
+        changes = phase.rig_changes(act.params)
+        if changes:  # row 0 of the phase is the reading before the switch, as in the node
+            reconfigure(act, changes)
         cols = _run_phase(act, pid, phase, out)
         exp = phase.experiment
         if exp is not None:
+            extra: dict[str, object] = {"kind": exp.kind}
+            if exp.regulated is not None:
+                extra["regulated"] = True
             entry = Entry(f"{exp.name}.csv", piston="locked" if exp.locked else "free",
-                          load_force=exp.load_force, role=exp.role, extra={"kind": exp.kind})
+                          load_force=exp.load_force, role=exp.role, extra=extra)
             experiments.append((entry, cols))
     return write_dataset(out_dir, experiments, overwrite=overwrite)

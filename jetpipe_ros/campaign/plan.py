@@ -22,6 +22,21 @@ The YAML file::
         setpoint: {signal: triangle, amplitude: 0.002, frequency: 0.125}   # [m]
         excitation: {signal: hold, level: 0.0}   # [V] added to the controller output, optional
         load_force: 0.0         # [N] constant external load, optional
+      - name: friction_1_6p93bar
+        kind: open_loop         # the valve is irrelevant: voltage optional (default 0 V)
+        role: train
+        duration: 1.5
+        regulated: {p1: 1.0e+5, p2: 6.93e+5}  # [Pa] chamber pressures held by regulators
+        load: {signal: release, rate: 1000.0}  # [N] per sample; release starts at S (p1 - p2)
+
+A ``regulated`` experiment is the friction test of the paper's Fig. 15 (Sec. 4.2): the rig
+switches the chambers to regulators holding p1, p2 (``chamber.regulated``), places the piston at
+rest at the end stop it leaves (the outer one, y = +stroke/2, for the entry phase p2 > p1; the
+inner one for the exit phase) and holds it there with the hydraulic load ``load`` [N], which
+starts at S (p1 - p2) (``release`` without ``level``; S, the stroke: the nominal values of
+DESIGN.md s.2) and is then released. Its settle phase keeps the piston at the stop under the
+initial load. ``load`` (a per-sample external load [N]) may also drive other open-loop
+experiments, instead of the constant ``load_force``.
 
 Signals name a generator of :mod:`jetpipe_ros.campaign.signals` and give its arguments (all
 but ``dt`` and ``duration``). Loading checks everything and raises :class:`CampaignError`
@@ -46,6 +61,15 @@ import yaml
 
 from jetpipe_ros.campaign.errors import CampaignError
 from jetpipe_ros.campaign.signals import GENERATORS, samples
+from jetpipe_ros.model.params import SPECS
+
+#: Nominal piston area S [m^2] and half stroke [m] (DESIGN.md s.2): the regulated rig's
+#: initial load S (p1 - p2) and the end stops it places the piston at.
+AREA = float(SPECS["chamber.piston_area"].default)
+HALF_STROKE = 0.5 * float(SPECS["mechanics.stroke"].default)
+#: Range of a regulated chamber pressure [Pa, absolute] (the model's initial-pressure range).
+PRESSURE_RANGE = (SPECS["chamber.initial_pressure_1"].low,
+                  SPECS["chamber.initial_pressure_1"].high)
 
 KINDS = ("open_loop", "closed_loop")
 ROLES = ("train", "holdout")
@@ -72,13 +96,15 @@ class SignalSpec:
 class Command:
     """What drives one experiment or phase, one value per sample.
 
-    Open loop: ``voltage`` [V]. Closed loop: ``setpoint`` [m] for the controller and
-    ``excitation`` [V] added to its output.
+    Open loop: ``voltage`` [V] and optionally ``load`` [N] (None: the phase's constant
+    ``load_force``). Closed loop: ``setpoint`` [m] for the controller and ``excitation`` [V]
+    added to its output.
     """
 
     voltage: np.ndarray | None = None
     setpoint: np.ndarray | None = None
     excitation: np.ndarray | None = None
+    load: np.ndarray | None = None
 
     @property
     def closed_loop(self) -> bool:
@@ -104,17 +130,29 @@ class ExperimentSpec:
     setpoint: SignalSpec | None = None  #: closed loop: the position setpoint [m]
     excitation: SignalSpec | None = None  #: closed loop: added to the controller output [V]
     load_force: float = 0.0  #: constant external load [N]
+    load: SignalSpec | None = None  #: open loop: external load per sample [N]
+    regulated: tuple[float, float] | None = None  #: (p1, p2) held by regulators [Pa]
 
     @property
     def closed_loop(self) -> bool:
         """True for a closed-loop experiment."""
         return self.kind == "closed_loop"
 
+    @property
+    def start_position(self) -> float:
+        """Where the regulated rig places the piston [m]: the end stop it leaves (outer,
+        +stroke/2, when p2 > p1: entry phase; inner otherwise); 0 for other experiments."""
+        if self.regulated is None:
+            return 0.0
+        return HALF_STROKE if self.regulated[1] > self.regulated[0] else -HALF_STROKE
+
     def command(self, dt: float) -> Command:
         """The experiment's command sampled every ``dt`` [s]."""
         if not self.closed_loop:
-            assert self.voltage is not None
-            return Command(voltage=self.voltage.sample(dt, self.duration))
+            n = samples(dt, self.duration)
+            voltage = self.voltage.sample(dt, self.duration) if self.voltage else np.zeros(n)
+            load = self.load.sample(dt, self.duration) if self.load else None
+            return Command(voltage=voltage, load=load)
         assert self.setpoint is not None
         n = samples(dt, self.duration)
         excitation = (self.excitation.sample(dt, self.duration) if self.excitation
@@ -125,7 +163,9 @@ class ExperimentSpec:
         """The experiment as a campaign YAML mapping."""
         out: dict[str, Any] = {"name": self.name, "kind": self.kind, "locked": self.locked,
                                "role": self.role, "duration": self.duration}
-        for key in ("voltage", "setpoint", "excitation"):
+        if self.regulated is not None:
+            out["regulated"] = {"p1": self.regulated[0], "p2": self.regulated[1]}
+        for key in ("voltage", "setpoint", "excitation", "load"):
             spec = getattr(self, key)
             if spec is not None:
                 out[key] = spec.to_yaml()
@@ -145,12 +185,33 @@ class Phase:
     experiment: ExperimentSpec | None
     locked: bool  #: piston clamped during the phase
     command: Command
-    load_force: float = 0.0  #: [N]
+    load_force: float = 0.0  #: [N], when the command has no ``load``
+    regulated: tuple[float, float] | None = None  #: (p1, p2) held by regulators [Pa]
+    start_position: float = 0.0  #: [m] where the regulated rig places the piston
+    place: bool = False  #: the rig sets the regulators and places the piston as it starts
 
     @property
     def samples(self) -> int:
         """Length of the phase [samples]."""
         return len(self.command)
+
+    def rig(self) -> dict[str, Any]:
+        """The test rig's model parameters over the phase: piston clamp, regulators and, when
+        regulated, their pressures [Pa] and the piston's place [m] (applied with
+        :func:`~jetpipe_ros.campaign.rig.reconfigure` or the simulator's parameters)."""
+        out: dict[str, Any] = {"mechanics.locked": self.locked,
+                               "chamber.regulated": self.regulated is not None}
+        if self.regulated is not None:
+            out.update({"chamber.initial_pressure_1": self.regulated[0],
+                        "chamber.initial_pressure_2": self.regulated[1],
+                        "mechanics.initial_position": self.start_position})
+        return out
+
+    def rig_changes(self, current: Mapping[str, Any]) -> dict[str, Any]:
+        """The rig parameters to set entering the phase from the rig ``current``: all of them
+        when the rig places the piston, else those that differ."""
+        rig = self.rig()
+        return rig if self.place else {k: v for k, v in rig.items() if current.get(k) != v}
 
 
 @dataclass(frozen=True)
@@ -173,7 +234,9 @@ class Campaign:
 
         Before each experiment: ``settle:center`` (piston free, closed loop to y = 0, skipped
         when the piston is locked before and during the experiment: it stays where it is
-        clamped), then ``settle:rest`` (0 V, piston as the experiment wants it).
+        clamped), then ``settle:rest`` (0 V, piston as the experiment wants it). A regulated
+        experiment's first phase sets the regulators and places the piston (``place``); its
+        ``settle:rest`` holds it there with the experiment's initial load.
         """
         dt = self.sample_time
         phases: list[Phase] = []
@@ -184,10 +247,17 @@ class Campaign:
                 phases.append(Phase("settle:center", None, False,
                                     Command(setpoint=np.zeros(n), excitation=np.zeros(n))))
                 locked = False
+            command = exp.command(dt)
+            rig = {"regulated": exp.regulated, "start_position": exp.start_position}
+            place = exp.regulated is not None
             if self.settle_rest > 0.0:
+                load = exp.load_force if command.load is None else float(command.load[0])
                 phases.append(Phase("settle:rest", None, exp.locked,
-                                    Command(voltage=np.zeros(samples(dt, self.settle_rest)))))
-            phases.append(Phase(exp.name, exp, exp.locked, exp.command(dt), exp.load_force))
+                                    Command(voltage=np.zeros(samples(dt, self.settle_rest))),
+                                    load, place=place, **rig))
+                place = False
+            phases.append(Phase(exp.name, exp, exp.locked, command, exp.load_force,
+                                place=place, **rig))
             locked = exp.locked
         return phases
 
@@ -277,15 +347,38 @@ def _experiment(where: str, raw: Any, dt: float) -> ExperimentSpec:
         raise CampaignError(f"{where}: field 'locked' must be true or false, got {locked!r}")
     duration = _number(where, "duration", raw.get("duration"), 2 * dt, 3600.0, "s")
     load = _number(where, "load_force", raw.get("load_force", 0.0), -1e4, 1e4, "N")
-    wanted = ("voltage",) if kind == "open_loop" else ("setpoint",)
-    optional = () if kind == "open_loop" else ("excitation",)
+    regulated = None
+    if kind == "open_loop":
+        if "regulated" in raw:
+            regulated = _regulated(where, raw["regulated"])
+        # A regulated test holds the valve at 0 V unless told otherwise (it is irrelevant).
+        wanted, optional = ((), ("voltage", "load")) if regulated else (("voltage",), ("load",))
+    else:
+        wanted, optional = ("setpoint",), ("excitation",)
     known = {"name", "kind", "role", "locked", "duration", "load_force", *wanted, *optional}
+    if kind == "open_loop":
+        known.add("regulated")
     unknown = sorted(set(raw) - known)
     if unknown:
         raise CampaignError(f"{where}: unknown field(s) {', '.join(unknown)} for a {kind} "
                             f"experiment; it takes {', '.join(sorted(known))}")
     if locked and kind == "closed_loop":
         raise CampaignError(f"{where}: a closed_loop experiment cannot have the piston locked")
+    if "load" in raw and "load_force" in raw:
+        raise CampaignError(f"{where}: give either 'load' (a signal [N]) or 'load_force' "
+                            f"(constant [N]), not both")
+    if regulated is not None:
+        if locked:
+            raise CampaignError(f"{where}: field 'regulated': the piston must be free "
+                                f"(locked: false) in a regulated friction test")
+        if "load" not in raw:
+            raise CampaignError(f"{where}: field 'load' is missing (a regulated experiment "
+                                f"needs the releasing load, e.g. {{signal: release, rate: "
+                                f"1000.0}} [N])")
+    raw_load = raw.get("load")
+    if (regulated is not None and isinstance(raw_load, Mapping)
+            and raw_load.get("signal") == "release" and "level" not in raw_load):
+        raw = {**raw, "load": {**raw_load, "level": AREA * (regulated[0] - regulated[1])}}
     signals = {key: _signal(where, key, raw[key], dt, duration)
                for key in (*wanted, *optional) if key in raw}
     for key in wanted:
@@ -293,7 +386,22 @@ def _experiment(where: str, raw: Any, dt: float) -> ExperimentSpec:
             raise CampaignError(f"{where}: field {key!r} is missing (a {kind} experiment "
                                 f"needs it)")
     return ExperimentSpec(name=name, kind=kind, duration=duration, locked=locked, role=role,
-                          load_force=load, **signals)
+                          load_force=load, regulated=regulated, **signals)
+
+
+def _regulated(where: str, raw: Any) -> tuple[float, float]:
+    """Validate ``regulated: {p1: Pa, p2: Pa}``: two different absolute pressures."""
+    where = f"{where}, field 'regulated'"
+    if not isinstance(raw, Mapping) or set(raw) != {"p1", "p2"}:
+        raise CampaignError(f"{where}: expected a mapping {{p1: <Pa>, p2: <Pa>}} (absolute "
+                            f"chamber pressures held by the regulators), got {raw!r}")
+    low, high = PRESSURE_RANGE
+    p1, p2 = (_number(where, key, raw[key], low, high, "Pa") for key in ("p1", "p2"))
+    if abs(p1 - p2) < 1e3:
+        raise CampaignError(f"{where}: p1 and p2 must differ by at least 1000 Pa (the net "
+                            f"force S (p1 - p2) sets the phase and slides the piston), got "
+                            f"p1 = {p1:g}, p2 = {p2:g}")
+    return p1, p2
 
 
 def parse_campaign(doc: Any, source: str = "<memory>") -> Campaign:

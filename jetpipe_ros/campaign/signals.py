@@ -97,6 +97,15 @@ def prbs(dt: float, duration: float, levels: Sequence[float], min_hold: float,
     return out
 
 
+def release(dt: float, duration: float, level: float, rate: float) -> np.ndarray:
+    """A held value released progressively: starts at ``level`` and ramps linearly to 0 at
+    ``rate`` [units/s], then stays at 0 (the friction test's hydraulic load [N], Sec. 4.2:
+    from S (p1 - p2) to 0 at about 1000 N/s)."""
+    if rate <= 0.0:
+        raise ValueError(f"release: rate must be > 0, got {rate}")
+    return np.sign(level) * np.maximum(abs(level) - rate * _time(dt, duration), 0.0)
+
+
 #: The generators by the name a campaign YAML gives in ``signal:``.
 GENERATORS: dict[str, Callable[..., np.ndarray]] = {
     "hold": hold,
@@ -105,4 +114,5 @@ GENERATORS: dict[str, Callable[..., np.ndarray]] = {
     "triangle": triangle,
     "sine_sweep": sine_sweep,
     "prbs": prbs,
+    "release": release,
 }
