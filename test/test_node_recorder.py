@@ -1,5 +1,6 @@
 """id_recorder + controller + actuator_sim (lock-step) in their own processes: the default
-campaign recorded to an MCAP bag, exported, compared with the offline runner; SIGINT."""
+campaign recorded to an MCAP bag, exported, compared with the offline runner; a short plan with
+a regulated friction test; SIGINT."""
 
 from __future__ import annotations
 
@@ -14,7 +15,8 @@ from rosbags.rosbag2 import Reader
 
 from jetpipe_ros.bag import EVENTS_TOPIC, export_bag
 from jetpipe_ros.bag.export import BagError
-from jetpipe_ros.campaign import default_campaign, run_campaign_offline
+from jetpipe_ros.campaign import default_campaign, load_campaign, run_campaign_offline
+from jetpipe_ros.campaign.plan import AREA
 from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.model import ModelParams, simulate
 
@@ -104,6 +106,53 @@ def test_export_round_trip_matches_the_offline_runner(campaign_bag, tmp_path):
         # then see a position one sample old, if its setpoint overtakes the position message).
         assert np.sqrt(np.mean((ros.y - off.y) ** 2)) < 2e-5, entry.name
         assert np.sqrt(np.mean((ros.p1 - off.p1) ** 2)) < 200.0, entry.name
+
+
+REGULATED_PLAN = """
+settle: {center: 0.3, rest: 0.3}
+experiments:
+  - {name: charge_1p15V, kind: open_loop, locked: true, role: train, duration: 0.5,
+     voltage: {signal: steps, levels: [1.15, -1.15], durations: [0.3, 0.2]}}
+  - {name: friction_1_6p93bar, kind: open_loop, role: train, duration: 1.5,
+     regulated: {p1: 1.0e+5, p2: 6.93e+5}, load: {signal: release, rate: 1000.0}}
+  - {name: square_0p6V, kind: open_loop, role: holdout, duration: 0.5,
+     voltage: {signal: square, amplitude: 0.6, frequency: 2.0}}
+"""
+
+
+def test_regulated_friction_test_through_ros_matches_the_offline_runner(launch, tmp_path):
+    """The rig switched by parameters (regulators, piston placed at the outer stop), the
+    releasing load published on load_force in lock-step and exported as f_load with
+    ``regulated: true``: the same run as the offline runner's."""
+    plan_file = tmp_path / "plan.yaml"
+    plan_file.write_text(REGULATED_PLAN)
+    _rig(launch, "/reg")
+    bag = tmp_path / "reg"
+    rec = launch(["-m", "jetpipe_ros.nodes.id_recorder", "--ros-args", "-r", "__ns:=/reg",
+                  "-p", f"bag:={bag}", "-p", f"campaign_file:={plan_file}"])
+    rec.wait_for("campaign done", STARTUP + 120.0)
+    assert rec.popen.wait(30.0) == 0, rec.output
+    exported = {e.name: (e, x) for e, x in
+                read_dataset(export_bag(bag, tmp_path / "ros", progress=lambda _: None))}
+    offline = {e.name: x for e, x in read_dataset(
+        run_campaign_offline(ModelParams(), load_campaign(plan_file), tmp_path / "off"))}
+    assert list(exported) == list(offline)
+    entry, ros = exported["friction_1_6p93bar"]
+    off = offline["friction_1_6p93bar"]
+    assert entry.extra["regulated"] is True and not entry.locked
+    assert "regulated" not in exported["square_0p6V"][0].extra
+    assert entry.extra["missing_samples"] == 0
+    # The load applied sample by sample is the plan's: S (p1 - p2) released at 1000 N/s.
+    assert ros.f_load[0] == pytest.approx(AREA * (1.0e5 - 6.93e5))
+    assert np.max(np.abs(ros.f_load - off.f_load)) < 1e-9
+    assert np.all(ros.p1 == 1.0e5) and np.all(ros.p2 == 6.93e5)
+    assert ros.y[0] == 0.025 and ros.y[-1] == pytest.approx(-0.025)  # slid stop to stop
+    assert np.max(np.abs(ros.y - off.y)) < 1e-9 and np.max(np.abs(ros.v - off.v)) < 1e-9
+    for name in ("charge_1p15V", "square_0p6V"):  # the rig switched back: valve-driven
+        _, data = exported[name]
+        assert np.max(np.abs(data.u - offline[name].u)) < 1e-9
+        assert np.sqrt(np.mean((data.p1 - offline[name].p1) ** 2)) < 200.0, name
+        assert np.all(data.f_load == 0.0)
 
 
 def test_sigint_leaves_a_readable_bag(launch, tmp_path):

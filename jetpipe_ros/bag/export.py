@@ -3,8 +3,10 @@
 The ``id_recorder`` marks each experiment with an event on ``/id_recorder/events`` (name, first
 sample's stamp, sample count, piston, role, load). For every complete experiment the export
 takes, at each sample's stamp t_k (simulated time): y and v from ``joint_states``, p1 and p2
-from the pressure topics, and u from ``voltage_applied`` stamped t_k+1 (the command held over
-[t_k, t_k+1)), so row k follows the convention of :func:`jetpipe_ros.model.simulate`. A few
+from the pressure topics, and u and f_load from ``voltage_applied`` stamped t_k+1 (the command
+and the load held over [t_k, t_k+1); bags without the load joint: the event's constant load), so
+row k follows the convention of :func:`jetpipe_ros.model.simulate`. Regulated friction tests are
+marked ``regulated: true`` in ``dataset.yaml``, as ``jetpipe identify`` reads them. A few
 samples lost in transport are interpolated and counted; more than :data:`MAX_MISSING` of an
 experiment is an error.
 """
@@ -44,7 +46,8 @@ def read_signals(bag: str | Path) -> tuple[dict[str, dict[str, np.ndarray]], lis
     """The stamped signals of a bag and its campaign events.
 
     Returns ({suffix: {"t": stamps [ns], field: values}}, events): for ``joint_states``
-    the fields y [m] and v [m/s], for the pressures p [Pa], for ``voltage_applied`` u [V];
+    the fields y [m] and v [m/s], for the pressures p [Pa], for ``voltage_applied`` u [V] and
+    f_load [N] (NaN if the bag's simulator did not report it);
     duplicate stamps (a lock-step simulator re-publishing while it waits) are dropped.
     """
     bag = Path(bag)
@@ -77,10 +80,11 @@ def _read(bag: Path, store) -> tuple[dict[str, dict[str, np.ndarray]], list[dict
             if suffix == "joint_states":
                 rows[suffix].append((stamp, msg.position[0], msg.velocity[0]))
             elif suffix == "voltage_applied":
-                rows[suffix].append((stamp, msg.position[0]))
+                load = msg.effort[1] if len(msg.effort) > 1 else np.nan
+                rows[suffix].append((stamp, msg.position[0], load))
             else:
                 rows[suffix].append((stamp, msg.fluid_pressure))
-    fields = {"joint_states": ("y", "v"), "voltage_applied": ("u",),
+    fields = {"joint_states": ("y", "v"), "voltage_applied": ("u", "f_load"),
               "chamber1/pressure": ("p",), "chamber2/pressure": ("p",)}
     signals = {}
     for suffix, data in rows.items():
@@ -137,10 +141,14 @@ def export_bag(bag: str | Path, out_dir: str | Path, overwrite: bool = False,
         if missing > MAX_MISSING * n:
             raise BagError(f"{bag}: experiment {name}: {missing} of {n} samples missing "
                            f"(more than {MAX_MISSING:.0%})")
-        cols["f_load"] = np.full(n, float(e["load_force"]))
+        load, _ = _at(bag, name, signals["voltage_applied"], "f_load", stamps + dt_ns)
+        cols["f_load"] = load if np.all(np.isfinite(load)) else np.full(n, float(e["load_force"]))
+        extra = {"kind": e["kind"], "missing_samples": missing}
+        if e.get("regulated"):
+            extra["regulated"] = True
         out.append((Entry(f"{name}.csv", piston="locked" if e["locked"] else "free",
-                          load_force=float(e["load_force"]), role=e["role"],
-                          extra={"kind": e["kind"], "missing_samples": missing}), cols))
+                          load_force=float(e["load_force"]), role=e["role"], extra=extra),
+                    cols))
         progress(f"{name}: {n} samples ({n * e['dt']:.1f} s), {missing} interpolated")
     return write_dataset(out_dir, out, overwrite=overwrite)
 

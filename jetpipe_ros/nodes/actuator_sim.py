@@ -18,9 +18,11 @@ Time modes (parameter ``time_mode``):
   seconds so that a commander that joins late can answer. Campaigns run this way (the
   ``id_recorder`` and ``controller`` answer every sample), as fast as the loop turns.
 
-Every sample also publishes ``voltage_applied``: the command held over the sample that ends at
-its stamp, so a recording pairs each measurement with the command that produced it whatever the
-transport delays.
+Every sample also publishes ``voltage_applied``: the command [V] (joint ``valve``, position) and
+the external load [N] (joint ``load``, effort) held over the sample that ends at its stamp, so a
+recording pairs each measurement with the inputs that produced it whatever the transport delays.
+Messages are applied in the order they arrive (the default EventsExecutor), so a commander that
+publishes a sample's ``load_force`` before its ``voltage_cmd`` gets both on that sample.
 
 Model parameters may be changed at run time (``ros2 param set``, or a test rig's switch such as
 ``mechanics.locked``): the model is rebuilt with the new values and keeps its state.
@@ -114,6 +116,7 @@ class ActuatorSim(Node):
         self._sim = opts["time_mode"] == "sim"
         self._lockstep = self._sim and opts["lockstep"]
         self._last_out: list[float] | None = None  # latest published outputs (lockstep kick)
+        self._last_load = 0.0  # load [N] held over the latest published sample
         self._waiting_since = -math.inf  # wall time [s] lockstep began waiting for a command
 
         self._u = 0.0  # held valve command [V]
@@ -203,7 +206,7 @@ class ActuatorSim(Node):
         self._msg_joint.name = [self.opts["joint_name"]]
         self._msg_applied = JointState()
         self._msg_applied.header.frame_id = self.opts["frame_id"]
-        self._msg_applied.name = ["valve"]
+        self._msg_applied.name = ["valve", "load"]
         self._msg_clock = ClockMsg()
 
     # -- run-time parameters ----------------------------------------------------------------
@@ -313,7 +316,7 @@ class ActuatorSim(Node):
             return
         if self._last_out is None:  # nothing published yet: the initial state at t = 0
             self._last_out = self.actuator.outputs().tolist()
-        self._publish(self._last_out, self._stamp_ns())
+        self._publish(self._last_out, self._stamp_ns(), self._last_load)
         self._waiting_since = now
 
     def _stamp_ns(self) -> int:
@@ -332,10 +335,12 @@ class ActuatorSim(Node):
                 f"(u = {self._u:g} V, load {self._f_load:g} N); model reset")
             self.actuator.reset()
             return
-        self._last_out = out
-        self._publish(out, self._stamp_ns())
+        self._last_out, self._last_load = out, self._f_load
+        self._publish(out, self._stamp_ns(), self._f_load)
 
-    def _publish(self, out: list[float], stamp_ns: int) -> None:
+    def _publish(self, out: list[float], stamp_ns: int, load: float) -> None:
+        """Publish one sample's outputs ``out`` stamped ``stamp_ns`` [ns]; ``load`` [N] is the
+        external load held over it (``voltage_applied``)."""
         sec, nanosec = divmod(stamp_ns, NS)
         y = out[k.OUT_Y_MEAS]
         self._msg_position.data = y
@@ -358,7 +363,8 @@ class ActuatorSim(Node):
         applied = self._msg_applied
         applied.header.stamp.sec = sec
         applied.header.stamp.nanosec = nanosec
-        applied.position = [out[k.OUT_U]]
+        applied.position = [out[k.OUT_U], math.nan]
+        applied.effort = [math.nan, load]
         self._pub["voltage_applied"].publish(applied)
         if self._sim:
             self._msg_clock.clock.sec = sec

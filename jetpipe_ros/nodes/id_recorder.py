@@ -11,8 +11,12 @@ phase (:meth:`jetpipe_ros.campaign.Campaign.schedule`) against a simulator in lo
 ``voltage_excitation`` and ``position_setpoint`` and the ``controller`` node, switched to
 ``pace_on_setpoint`` for the campaign (and back at the end), answers each setpoint. Exactly one
 command answers each sample, so the recorder paces every phase and the plan's commands land on
-the planned samples. Between phases it clamps or releases the piston (the simulator's
-``mechanics.locked`` parameter) while the simulator waits. Each experiment is marked on
+the planned samples. Between phases it switches the rig (:meth:`Phase.rig_changes`: the
+simulator's ``mechanics.locked``, and for the regulated friction tests ``chamber.regulated``,
+the regulated pressures and the piston's place, set atomically) while the simulator waits. A
+phase with a load signal (the friction test's releasing load) publishes each sample's
+``load_force`` just before its ``voltage_cmd``; the simulator applies them in arrival order and
+reports the load it applied on ``voltage_applied``, which the export reads. Each experiment is marked on
 ``/id_recorder/events`` so ``jetpipe export BAG DATASET_DIR`` can cut the dataset. The node
 exits when the campaign is done. ``mode: record`` only records, until stopped.
 
@@ -55,7 +59,9 @@ NODE_NAME = "id_recorder"
 NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
     ParamSpec("mode", "campaign", "Run the campaign and record, or only record until stopped",
               choices=("campaign", "record")),
-    ParamSpec("campaign_file", "", "Campaign YAML; empty: the package's config/campaign.yaml"),
+    ParamSpec("campaign_file", "", "Campaign YAML; a relative path not found is looked up "
+              "among the package's data (config/campaign_identification.yaml works wherever "
+              "installed); empty: the package's config/campaign.yaml"),
     ParamSpec("bag", "", "Bag directory to create; empty: bags/campaign_<date>_<time>"),
     ParamSpec("simulator_node", "actuator_sim", "Simulator node (same namespace)"),
     ParamSpec("controller_node", "controller", "Controller node (same namespace)"),
@@ -95,8 +101,8 @@ class Recorder(Node):
         self.campaign: Campaign | None = None
         if self.opts["mode"] == "campaign":
             try:
-                self.campaign = (load_campaign(self.opts["campaign_file"])
-                                 if self.opts["campaign_file"] else _default_campaign())
+                self.campaign = load_campaign(
+                    _campaign_path(self.opts["campaign_file"] or "config/campaign.yaml"))
             except CampaignError as exc:
                 raise StartupError([str(exc)]) from exc
         self._dt_ns = round(self.opts["sample_time"] * NS)
@@ -131,7 +137,7 @@ class Recorder(Node):
         self._sent = -1  # highest row of the current phase whose command was sent
         self._held: int | None = None  # a sample waiting while the rig is switched
         self._busy = False  # a parameter change is in flight
-        self._locked = False
+        self._rig: dict[str, Any] = {}  # the simulator's rig parameters as last set
         self._paced = False  # the controller was switched to pace_on_setpoint
         self._load = 0.0
         self.ready = False  # campaign mode: the simulator and controller are set up
@@ -242,6 +248,8 @@ class Recorder(Node):
             self._set(self._ctl_params, "enabled", True, spin)
             self._paced = True
         self._set(self._sim_params, "mechanics.locked", False, spin)
+        self._set(self._sim_params, "chamber.regulated", False, spin)
+        self._rig = {"mechanics.locked": False, "chamber.regulated": False}
         self.wall_start = time.monotonic()
         self.ready = True
         self.get_logger().info("simulator found; campaign running")
@@ -295,6 +303,9 @@ class Recorder(Node):
         else:  # keep `lead` commands in flight, never beyond the phase
             last = min(row + self.opts["lead"], phase.samples) - 1
             for r in range(max(row, self._sent + 1), last + 1):
+                if cmd.load is not None:  # the sample's load first: applied in arrival order
+                    self._load = float(cmd.load[r])
+                    self._publish("load_force", self._load)
                 self._publish("voltage_cmd", float(cmd.voltage[r]))
             self._sent = max(self._sent, last)
         self._answered = stamp
@@ -306,32 +317,26 @@ class Recorder(Node):
     def _switch(self, phase: Phase) -> bool:
         """Set the rig up for ``phase``; True if a parameter change is now in flight (the
         phase then starts in :meth:`_resume`)."""
-        if phase.load_force != self._load:
+        if phase.command.load is None and phase.load_force != self._load:
             self._load = phase.load_force
             self._publish("load_force", self._load)
-        pending = []
-        if phase.locked != self._locked:
-            pending.append(self._sim_params.set_parameters(
-                [Parameter("mechanics.locked", value=phase.locked)]))
-            self._locked = phase.locked
-        if not pending:
+        changes = phase.rig_changes(self._rig)
+        if not changes:
             return False
         self._busy = True
-        remaining = [len(pending)]
+        self._rig.update(changes)
 
         def done(future) -> None:
-            result = future.result().results[0]
+            result = future.result().result
             if not result.successful:
                 self.get_logger().error(f"rig switch refused: {result.reason}")
-            remaining[0] -= 1
-            if remaining[0] == 0:
-                self._busy = False
-                held, self._held = self._held, None
-                if held is not None:
-                    self._resume(held)
+            self._busy = False
+            held, self._held = self._held, None
+            if held is not None:
+                self._resume(held)
 
-        for future in pending:
-            future.add_done_callback(done)
+        self._sim_params.set_parameters_atomically(
+            [Parameter(name, value=v) for name, v in changes.items()]).add_done_callback(done)
         return True
 
     def _resume(self, stamp: int) -> None:
@@ -351,6 +356,7 @@ class Recorder(Node):
                 (self._answered - self._start_ns) // self._dt_ns + 1)
             self.bag.event(self._now_ns, event="experiment", name=e.name, kind=e.kind,
                            locked=e.locked, role=e.role, load_force=e.load_force,
+                           regulated=e.regulated is not None,
                            start_ns=self._start_ns, samples=samples,
                            dt=self.opts["sample_time"], complete=complete)
         if not complete:
@@ -382,8 +388,16 @@ class Recorder(Node):
                 spin(0.05)
 
 
-def _default_campaign() -> Campaign:
-    return load_campaign(interface.share_file("config/campaign.yaml"))
+def _campaign_path(name: str) -> Path:
+    """The campaign file ``name`` as given, or, if it is relative and not there, the package's
+    data file of that relative path (``config/campaign_identification.yaml``)."""
+    path = Path(name)
+    if path.is_file() or path.is_absolute():
+        return path
+    try:
+        return interface.share_file(name)
+    except interface.ContractError:
+        return path  # load_campaign names it as given
 
 
 def main(args: Sequence[str] | None = None) -> int:
