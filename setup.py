@@ -17,7 +17,8 @@ setup(
         (f"share/{PACKAGE}/msg_defs", glob("msg_defs/*.yaml")),
     ],
     # rclpy and the ROS messages come from the ROS install or requirements-ros.txt.
-    install_requires=["numpy", "scipy", "numba", "pyyaml", "matplotlib", "rosbags"],
+    install_requires=["numpy", "scipy", "numba", "pyyaml", "matplotlib", "rosbags",
+                      "threadpoolctl"],
     python_requires=">=3.10",
     zip_safe=True,
     maintainer="jetpipe_ros developers",
