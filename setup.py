@@ -32,6 +32,7 @@ setup(
             "actuator_sim = jetpipe_ros.nodes.actuator_sim:main",
             "controller = jetpipe_ros.nodes.controller:main",
             "id_recorder = jetpipe_ros.nodes.id_recorder:main",
+            "composed_campaign = jetpipe_ros.nodes.composed_campaign:main",
             "jetpipe = jetpipe_ros.cli:main",
         ],
     },

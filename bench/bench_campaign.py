@@ -1,9 +1,10 @@
 """Campaign recording: lock-step speed and the recorder's kept fraction at 1 kHz in real time.
 
 1. Lock-step: actuator_sim (``time_mode: sim``, ``lockstep: true``), controller and id_recorder
-   run the default campaign (``config/campaign.yaml``, or ``--experiments``); the figure is the
-   campaign's simulated duration over the wall time between the recorder's "campaign running"
-   and "campaign done" (simulated s per wall s), with the recorder's kept fraction.
+   run the default campaign (``config/campaign.yaml``, or ``--experiments``), first as three
+   processes, then composed in one (``composed_campaign``); the figure is the campaign's
+   simulated duration over the wall time between the recorder's "campaign running" and
+   "campaign done" (simulated s per wall s), with the recorder's kept fraction.
 2. Real time: actuator_sim at 1 kHz (``time_mode: realtime``) with the controller holding a
    setpoint; id_recorder in ``mode: record`` for ``--seconds`` (60), then SIGINT; the kept
    fraction of ``joint_states`` samples, counted from the bag's stamps.
@@ -82,32 +83,42 @@ def kept_from_bag(bag: Path) -> tuple[int, int]:
     return stamps.size, int((stamps[-1] - stamps[0]) // 1_000_000 + 1)
 
 
-def lockstep(work: Path, experiments: list[str] | None, lead: int) -> dict[str, float]:
-    """Run the campaign in lock-step; its figures."""
+def lockstep(work: Path, experiments: list[str] | None, lead: int,
+             composed: bool) -> dict[str, float]:
+    """Run the campaign in lock-step, in three processes or composed in one; its figures."""
     plan = default_campaign()
     extra: list[str] = []
     if experiments:
         plan = plan.select(experiments)
         path = work / "plan.yaml"
         path.write_text(plan.to_yaml())
-        extra = ["-p", f"campaign_file:={path}"]
-    sim = Node("actuator_sim", "--params-file", str(REPO / "config/actuator.yaml"),
-               "-p", "time_mode:=sim", "-p", "lockstep:=true", "-p", "report_period:=0.0")
-    ctl = Node("controller", "--params-file", str(REPO / "config/controller.yaml"))
-    rec = None
+        extra = ["-p", f"id_recorder:campaign_file:={path}"]
+    bag = work / ("composed" if composed else "lockstep")
+    recorder_args = ["-p", f"id_recorder:bag:={bag}", "-p", f"id_recorder:lead:={lead}", *extra]
+    nodes: list[Node] = []
     try:
-        sim.wait_for("started:", 60.0)
-        ctl.wait_for("started:", 60.0)
-        rec = Node("id_recorder", "-p", f"bag:={work / 'lockstep'}", "-p", f"lead:={lead}",
-                   *extra)
+        if composed:
+            rec = Node("composed_campaign", "--params-file", str(REPO / "config/actuator.yaml"),
+                       "--params-file", str(REPO / "config/controller.yaml"),
+                       "-p", "actuator_sim:report_period:=0.0", *recorder_args)
+            nodes.append(rec)
+        else:
+            nodes.append(Node("actuator_sim", "--params-file",
+                              str(REPO / "config/actuator.yaml"), "-p", "time_mode:=sim",
+                              "-p", "lockstep:=true", "-p", "report_period:=0.0"))
+            nodes.append(Node("controller", "--params-file",
+                              str(REPO / "config/controller.yaml")))
+            for node in nodes:
+                node.wait_for("started:", 60.0)
+            rec = Node("id_recorder", *recorder_args)
+            nodes.append(rec)
         start, _ = rec.wait_for("campaign running", 60.0)
         end, _ = rec.wait_for("campaign done", 3600.0)
         rec.proc.wait(30.0)
         _, line = rec.wait_for("joint_states samples", 5.0)
     finally:
-        for node in (rec, ctl, sim):
-            if node is not None:
-                node.stop()
+        for node in reversed(nodes):
+            node.stop()
     kept = float(re.search(r"kept ([0-9.]+) %", line).group(1))
     simulated = plan.total_duration()
     return {"simulated": simulated, "wall": end - start, "speed": simulated / (end - start),
@@ -144,15 +155,20 @@ def main() -> int:
     parser.add_argument("--experiments", default="", help="comma-separated subset")
     parser.add_argument("--lead", type=int, default=4, help="id_recorder lead [samples]")
     args = parser.parse_args()
+    experiments = [e for e in args.experiments.split(",") if e] or None
     with tempfile.TemporaryDirectory(prefix="jetpipe-bench-") as tmp:
         work = Path(tmp)
-        ls = lockstep(work, [e for e in args.experiments.split(",") if e] or None, args.lead)
+        runs = {composed: lockstep(work, experiments, args.lead, composed)
+                for composed in (False, True)}
         rt = realtime(work, args.seconds)
     print("| figure | value | target |")
     print("|---|---|---|")
-    print(f"| campaign in lock-step ({ls['simulated']:.1f} s simulated, lead {args.lead}) | "
-          f"{ls['speed']:.2f} x real time ({ls['wall']:.1f} s wall) | >= 5 x |")
-    print(f"| lock-step campaign: samples kept | {ls['kept']:.3f} % | >= 99.9 % |")
+    for composed, ls in runs.items():
+        how = ("composed_campaign (one process)" if composed
+               else "actuator_sim + controller + id_recorder (three processes)")
+        print(f"| campaign in lock-step, {how}, {ls['simulated']:.1f} s simulated, lead "
+              f"{args.lead} | {ls['speed']:.2f} x real time ({ls['wall']:.1f} s wall), kept "
+              f"{ls['kept']:.3f} % | >= 5 x, >= 99.9 % |")
     print(f"| recorder at 1 kHz, {rt['seconds']:.0f} s real time: samples kept | "
           f"{rt['kept']:.3f} % ({rt['samples']} of {rt['expected']}) | >= 99.9 % |")
     return 0

@@ -1,6 +1,7 @@
-"""id_recorder + controller + actuator_sim (lock-step) in their own processes: the default
-campaign recorded to an MCAP bag, exported, compared with the offline runner; a short plan with
-a regulated friction test; SIGINT."""
+"""id_recorder + controller + actuator_sim in lock-step: the default campaign composed in one
+process (composed_campaign) recorded to an MCAP bag, exported, compared with the offline runner;
+a short plan with a regulated friction test through three processes; SIGINT in both set-ups;
+record mode on a real-time stream."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import time
 
 import numpy as np
 import pytest
+import yaml
 from mcap.reader import make_reader
 from rosbags.rosbag2 import Reader
 
@@ -21,7 +23,7 @@ from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.model import ModelParams, simulate
 
 STARTUP = 30.0  # [s] first numba compile
-CAMPAIGN = 600.0  # [s] wall-time bound for the default campaign (about 1 min here)
+CAMPAIGN = 600.0  # [s] wall-time bound for the default campaign (about 20 s here)
 
 
 def _rig(launch, ns: str) -> None:
@@ -39,11 +41,23 @@ def _recorder(launch, ns: str, bag) -> object:
                    "-p", f"bag:={bag}"])
 
 
+def _composed(launch, ns: str, bag, **nodes: dict) -> object:
+    """composed_campaign in namespace ``ns``; per-node parameters (``-p node:name:=v`` rules
+    match only nodes in the root namespace) go through a params file, as the README says."""
+    nodes = {"actuator_sim": {"report_period": 0.0}, **nodes}
+    nodes["id_recorder"] = {"bag": str(bag), **nodes.get("id_recorder", {})}
+    params = bag.parent / f"{bag.name}.params.yaml"
+    params.write_text(yaml.safe_dump(
+        {f"/**/{node}": {"ros__parameters": values} for node, values in nodes.items()}))
+    return launch(["-m", "jetpipe_ros.nodes.composed_campaign", "--ros-args",
+                   "-r", f"__ns:={ns}", "--params-file", "config/actuator.yaml",
+                   "--params-file", "config/controller.yaml", "--params-file", str(params)])
+
+
 @pytest.fixture(scope="module")
 def campaign_bag(module_launch, tmp_path_factory):
-    _rig(module_launch, "/rec")
     bag = tmp_path_factory.mktemp("bags") / "campaign"
-    rec = _recorder(module_launch, "/rec", bag)
+    rec = _composed(module_launch, "/rec", bag)
     rec.wait_for("campaign done", CAMPAIGN)
     assert rec.popen.wait(30.0) == 0, rec.output
     return bag, rec
@@ -155,10 +169,14 @@ def test_regulated_friction_test_through_ros_matches_the_offline_runner(launch, 
         assert np.all(data.f_load == 0.0)
 
 
-def test_sigint_leaves_a_readable_bag(launch, tmp_path):
-    _rig(launch, "/int")
+@pytest.mark.parametrize("composed", [False, True], ids=["three_processes", "composed"])
+def test_sigint_leaves_a_readable_bag(launch, tmp_path, composed):
     bag = tmp_path / "interrupted"
-    rec = _recorder(launch, "/int", bag)
+    if composed:
+        rec = _composed(launch, "/intc", bag)
+    else:
+        _rig(launch, "/int")
+        rec = _recorder(launch, "/int", bag)
     rec.wait_for("experiment charge_0p57V", STARTUP + 60.0)
     rec.popen.send_signal(signal.SIGINT)
     assert rec.popen.wait(20.0) == 0, rec.output
@@ -174,6 +192,13 @@ def test_sigint_leaves_a_readable_bag(launch, tmp_path):
     data = read_dataset(export_bag(bag, tmp_path / "data", progress=messages.append))
     assert [e.name for e in data.entries] == ["charge_0p29V"]
     assert any("skipping charge_0p57V" in m for m in messages)
+
+
+def test_composed_campaign_names_the_node_of_a_bad_parameter(launch, tmp_path):
+    rec = _composed(launch, "/bad", tmp_path / "bag", controller={"kp": -1.0})
+    assert rec.popen.wait(STARTUP + 30.0) == 2, rec.output
+    assert "[controller]" in rec.output and "kp" in rec.output, rec.output
+    assert "not started" in rec.output and not (tmp_path / "bag").exists()
 
 
 def test_record_mode_keeps_a_real_time_stream(launch, tmp_path):

@@ -36,9 +36,7 @@ from __future__ import annotations
 
 import array
 import math
-import signal
 import sys
-import threading
 import time
 from collections.abc import Sequence
 from typing import Any
@@ -50,7 +48,6 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.signals import SignalHandlerOptions
 from rclpy.time import Time
 from rclpy.time_source import TimeSource
 
@@ -58,7 +55,7 @@ from jetpipe_ros.campaign.rig import reconfigure
 from jetpipe_ros.model import SPECS, Actuator, ModelParams, ParameterError
 from jetpipe_ros.model import kernel as k
 from jetpipe_ros.model.params import NODE_NAME, ParamSpec, check_value
-from jetpipe_ros.nodes import interface
+from jetpipe_ros.nodes import interface, process
 from jetpipe_ros.nodes.pacing import Pacer
 from jetpipe_ros.nodes.parameters import StartupError, declare, unknown_overrides, value
 
@@ -95,7 +92,6 @@ DYNAMIC = ("real_time_factor", "command_timeout", "report_period")
 MODEL_STATIC = ("integration.sample_time", "sensors.seed")
 
 TICK = 1e-3  #: shortest wall-clock timer period [s]
-SPIN_TIMEOUT = 0.1  #: spin_once timeout [s]; EventsExecutor must never spin without one
 WARN_PERIOD = 1.0  #: throttle of repeated command warnings [s]
 NS = 1_000_000_000
 
@@ -404,28 +400,17 @@ def _executor(kind: str) -> Any:
 
 def main(args: Sequence[str] | None = None) -> int:
     """Run the node until Ctrl-C or SIGTERM; return 0, or 2 on bad parameters."""
-    stop = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop.set())
-    try:
-        # Own signal handling: stop the loop, log the totals, then shut ROS down.
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    except Exception as exc:  # rcl refuses the arguments or a params file it cannot parse
-        print(f"{NODE_NAME}: error: cannot initialise ROS: {exc}", file=sys.stderr)
+    stop = process.start(NODE_NAME, args)
+    if stop is None:
         return 2
     node = None
     try:
         node = ActuatorSim()
         executor = _executor(node.opts["executor"])
         executor.add_node(node)
-        while not stop.is_set() and rclpy.ok():
-            executor.spin_once(timeout_sec=SPIN_TIMEOUT)
+        process.spin(executor, stop)
     except StartupError as exc:
-        logger = rclpy.logging.get_logger(NODE_NAME)
-        for message in exc.messages:
-            logger.error(message)
-        logger.error("not started: fix the parameters above")
-        return 2
+        return process.startup_failed(NODE_NAME, exc)
     except ExternalShutdownException:
         pass
     finally:

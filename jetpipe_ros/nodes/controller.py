@@ -22,9 +22,7 @@ config/controller.yaml``. Exit status 2 on bad parameters.
 from __future__ import annotations
 
 import math
-import signal
 import sys
-import threading
 from collections.abc import Sequence
 from typing import Any
 
@@ -34,12 +32,11 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.signals import SignalHandlerOptions
 
 from jetpipe_ros.control import SPECS, Pid, PidConfig
 from jetpipe_ros.model import ParameterError
 from jetpipe_ros.model.params import ParamSpec
-from jetpipe_ros.nodes import interface
+from jetpipe_ros.nodes import interface, process
 from jetpipe_ros.nodes.parameters import StartupError, declare, unknown_overrides, value
 
 NODE_NAME = "controller"
@@ -51,7 +48,6 @@ NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
               "s", 1e-5, 1.0),
 ]}
 WARN_PERIOD = 1.0  #: throttle of repeated warnings [s]
-SPIN_TIMEOUT = 0.1  #: [s] EventsExecutor must never spin without a timeout
 
 
 class Controller(Node):
@@ -167,27 +163,17 @@ class Controller(Node):
 
 def main(args: Sequence[str] | None = None) -> int:
     """Run the controller until Ctrl-C or SIGTERM; 0, or 2 on bad parameters."""
-    stop = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop.set())
-    try:
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    except Exception as exc:  # rcl refuses the arguments or the params file
-        print(f"{NODE_NAME}: error: cannot initialise ROS: {exc}", file=sys.stderr)
+    stop = process.start(NODE_NAME, args)
+    if stop is None:
         return 2
     node = None
     try:
         node = Controller()
         executor = EventsExecutor()
         executor.add_node(node)
-        while not stop.is_set() and rclpy.ok():
-            executor.spin_once(timeout_sec=SPIN_TIMEOUT)
+        process.spin(executor, stop)
     except StartupError as exc:
-        logger = rclpy.logging.get_logger(NODE_NAME)
-        for message in exc.messages:
-            logger.error(message)
-        logger.error("not started: fix the parameters above")
-        return 2
+        return process.startup_failed(NODE_NAME, exc)
     except ExternalShutdownException:
         pass
     finally:

@@ -30,10 +30,8 @@ parameters or a bad campaign file, 1 if the simulator or controller cannot be re
 from __future__ import annotations
 
 import math
-import signal
 import struct
 import sys
-import threading
 import time
 from collections.abc import Sequence
 from datetime import datetime
@@ -47,12 +45,12 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
+from rclpy.task import Future
 
 from jetpipe_ros.bag import BagWriter
 from jetpipe_ros.campaign import Campaign, CampaignError, Phase, load_campaign
 from jetpipe_ros.model.params import ParamSpec
-from jetpipe_ros.nodes import interface
+from jetpipe_ros.nodes import interface, process
 from jetpipe_ros.nodes.parameters import StartupError, declare, unknown_overrides, value
 
 NODE_NAME = "id_recorder"
@@ -74,7 +72,6 @@ NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
     ParamSpec("queue_depth", 1000, "Depth of the recording subscriptions' queues",
               "messages", 10, 100000),
 ]}
-SPIN_TIMEOUT = 0.05  #: [s] EventsExecutor must never spin without a timeout
 NS = 1_000_000_000
 #: Message types whose CDR payload starts with a time stamp (header.stamp or clock).
 STAMPED = ("sensor_msgs/msg/FluidPressure", "sensor_msgs/msg/JointState",
@@ -142,6 +139,7 @@ class Recorder(Node):
         self._load = 0.0
         self.ready = False  # campaign mode: the simulator and controller are set up
         self.done = False
+        self.finished = Future()  #: completed when the campaign is done
         self.wall_start = time.monotonic()
         self.sim_start_ns: int | None = None
         self._sim_params = AsyncParameterClient(self, self.opts["simulator_node"])
@@ -365,6 +363,7 @@ class Recorder(Node):
         self._start_ns = None
         if self._index == len(self._phases):
             self.done = True
+            self.finished.set_result(None)
             self.bag.event(self._now_ns, event="campaign_done")
             self.get_logger().info("campaign done")
 
@@ -400,53 +399,53 @@ def _campaign_path(name: str) -> Path:
         return path  # load_campaign names it as given
 
 
-def main(args: Sequence[str] | None = None) -> int:
-    """Run until the campaign is done, or Ctrl-C/SIGTERM; 0, 1 (no simulator) or 2."""
-    stop = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop.set())
-    try:
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    except Exception as exc:
-        print(f"{NODE_NAME}: error: cannot initialise ROS: {exc}", file=sys.stderr)
-        return 2
-    node = None
+def run(node: Recorder, executor: Any, stop: process.Stop) -> int:
+    """Run the recorder's work on ``executor`` (which spins ``node`` and any nodes sharing its
+    process) until the campaign is done or ``stop`` is set; close the bag whatever happens.
+    Returns 0, or 1 if the simulator or controller cannot be reached."""
+
+    def spin_once(timeout: float) -> None:
+        if stop.is_set():
+            raise KeyboardInterrupt
+        executor.spin_once(timeout_sec=timeout)
+
     status = 0
     try:
-        node = Recorder()
-        executor = EventsExecutor()
-        executor.add_node(node)
-
-        def spin(timeout: float) -> None:
-            if stop.is_set():
-                raise KeyboardInterrupt
-            executor.spin_once(timeout_sec=timeout)
-
         if node.campaign is not None:
-            node.connect(spin)
-        while not stop.is_set() and not node.done and rclpy.ok():
-            executor.spin_once(timeout_sec=SPIN_TIMEOUT)
-        drain = time.monotonic() + 1.0  # the last sample's other topics are still on the way
-        while node.done and not node.drained() and time.monotonic() < drain:
-            executor.spin_once(timeout_sec=SPIN_TIMEOUT)
-    except StartupError as exc:
-        logger = rclpy.logging.get_logger(NODE_NAME)
-        for message in exc.messages:
-            logger.error(message)
-        logger.error("not started: fix the parameters above")
-        return 2
+            node.connect(spin_once)
+        process.spin(executor, stop, until=node.finished)
+        if node.done:  # the last sample's other topics are still on the way: wait up to 1 s
+            drain = time.monotonic() + 1.0
+            process.spin(executor, stop,
+                         condition=lambda: node.drained() or time.monotonic() > drain)
     except RuntimeError as exc:
         rclpy.logging.get_logger(NODE_NAME).error(str(exc))
         status = 1
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        node.release_controller(lambda t: executor.spin_once(timeout_sec=t))
+        node.close()
+    return status
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """Run until the campaign is done, or Ctrl-C/SIGTERM; 0, 1 (no simulator) or 2."""
+    stop = process.start(NODE_NAME, args)
+    if stop is None:
+        return 2
+    node = None
+    try:
+        node = Recorder()
+        executor = EventsExecutor()
+        executor.add_node(node)
+        return run(node, executor, stop)
+    except StartupError as exc:
+        return process.startup_failed(NODE_NAME, exc)
+    finally:
         if node is not None:
-            node.release_controller(lambda t: executor.spin_once(timeout_sec=t))
-            node.close()
             node.destroy_node()
         rclpy.try_shutdown()
-    return status
 
 
 if __name__ == "__main__":

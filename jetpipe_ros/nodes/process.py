@@ -1,0 +1,101 @@
+"""Process plumbing shared by the executables: signals, ROS start-up, spinning, start-up errors.
+
+Each executable installs its own SIGINT/SIGTERM handlers (they set an event the spin loop
+watches), so it can finish its work (log totals, close a bag) before ROS shuts down.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import rclpy
+from rclpy.signals import SignalHandlerOptions
+from rclpy.task import Future
+
+from jetpipe_ros.nodes.parameters import StartupError
+
+#: Longest a spin call blocks [s]: the stop event and the exit condition are checked this often.
+#: (This rclpy's EventsExecutor must never spin without a timeout: it then ignores signals.)
+SPIN_TIMEOUT = 0.05
+
+
+class Stop:
+    """Set by SIGINT/SIGTERM: ends :func:`spin` at once, even while callbacks keep coming."""
+
+    def __init__(self) -> None:
+        self._event = threading.Event()
+        self._wakes: set[Future] = set()
+
+    def set(self) -> None:
+        self._event.set()
+        for wake in list(self._wakes):
+            _complete(wake)
+
+    def is_set(self) -> bool:
+        return self._event.is_set()
+
+    def watch(self, wake: Future) -> None:
+        """Complete ``wake`` when (or if already) set."""
+        self._wakes.add(wake)
+        if self.is_set():
+            _complete(wake)
+
+    def forget(self, wake: Future) -> None:
+        self._wakes.discard(wake)
+
+
+def _complete(future: Future) -> None:
+    if not future.done():
+        future.set_result(None)
+
+
+def start(name: str, args: Sequence[str] | None) -> Stop | None:
+    """Route SIGINT/SIGTERM to the returned :class:`Stop` and initialise ROS with ``args``.
+
+    Returns None, after printing why on stderr, if ROS refuses the arguments (a bad
+    ``--ros-args`` or a params file it cannot parse).
+    """
+    stop = Stop()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except Exception as exc:  # noqa: BLE001 - rcl raises several types for bad arguments
+        print(f"{name}: error: cannot initialise ROS: {exc}", file=sys.stderr)
+        return None
+    return stop
+
+
+def spin(executor: Any, stop: Stop, until: Future | None = None,
+         condition: Callable[[], bool] = lambda: False) -> None:
+    """Run callbacks until ``stop`` is set, ROS shuts down, ``until`` completes or
+    ``condition()`` holds.
+
+    Callbacks run inside the executor's own loop (with the EventsExecutor far cheaper per
+    message than one ``spin_once`` per callback). That loop returns at its timeout only once it
+    runs out of work, which a lock-step campaign in one process never does: ``stop`` and
+    ``until`` end it through a future instead. ``condition`` is checked between calls, at least
+    every :data:`SPIN_TIMEOUT` while idle.
+    """
+    wake = Future()
+    stop.watch(wake)
+    if until is not None:
+        until.add_done_callback(lambda _: _complete(wake))
+    try:
+        while not wake.done() and rclpy.ok() and not condition():
+            executor.spin_until_future_complete(wake, timeout_sec=SPIN_TIMEOUT)
+    finally:
+        stop.forget(wake)
+
+
+def startup_failed(name: str, exc: StartupError) -> int:
+    """Log every start-up problem of node ``name``; the exit status for bad parameters (2)."""
+    logger = rclpy.logging.get_logger(name)
+    for message in exc.messages:
+        logger.error(message)
+    logger.error("not started: fix the parameters above")
+    return 2
