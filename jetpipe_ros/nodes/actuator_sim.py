@@ -41,10 +41,9 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
-import rclpy
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -400,25 +399,9 @@ def _executor(kind: str) -> Any:
 
 def main(args: Sequence[str] | None = None) -> int:
     """Run the node until Ctrl-C or SIGTERM; return 0, or 2 on bad parameters."""
-    stop = process.start(NODE_NAME, args)
-    if stop is None:
-        return 2
-    node = None
-    try:
-        node = ActuatorSim()
-        executor = _executor(node.opts["executor"])
-        executor.add_node(node)
-        process.spin(executor, stop)
-    except StartupError as exc:
-        return process.startup_failed(NODE_NAME, exc)
-    except ExternalShutdownException:
-        pass
-    finally:
-        if node is not None:
-            node.report(final=True)
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return process.run_node(NODE_NAME, args, ActuatorSim,
+                            executor=lambda node: _executor(node.opts["executor"]),
+                            finish=lambda node: node.report(final=True))
 
 
 if __name__ == "__main__":

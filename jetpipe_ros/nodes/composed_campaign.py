@@ -66,5 +66,6 @@ def main(args: Sequence[str] | None = None) -> int:
             node.destroy_node()
         rclpy.try_shutdown()
 
+
 if __name__ == "__main__":
     sys.exit(main())

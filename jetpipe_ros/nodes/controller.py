@@ -26,10 +26,7 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-import rclpy
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.executors import ExternalShutdownException
-from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -163,24 +160,7 @@ class Controller(Node):
 
 def main(args: Sequence[str] | None = None) -> int:
     """Run the controller until Ctrl-C or SIGTERM; 0, or 2 on bad parameters."""
-    stop = process.start(NODE_NAME, args)
-    if stop is None:
-        return 2
-    node = None
-    try:
-        node = Controller()
-        executor = EventsExecutor()
-        executor.add_node(node)
-        process.spin(executor, stop)
-    except StartupError as exc:
-        return process.startup_failed(NODE_NAME, exc)
-    except ExternalShutdownException:
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return process.run_node(NODE_NAME, args, Controller)
 
 
 if __name__ == "__main__":

@@ -40,7 +40,6 @@ from typing import Any
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
-from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -431,21 +430,7 @@ def run(node: Recorder, executor: Any, stop: process.Stop) -> int:
 
 def main(args: Sequence[str] | None = None) -> int:
     """Run until the campaign is done, or Ctrl-C/SIGTERM; 0, 1 (no simulator) or 2."""
-    stop = process.start(NODE_NAME, args)
-    if stop is None:
-        return 2
-    node = None
-    try:
-        node = Recorder()
-        executor = EventsExecutor()
-        executor.add_node(node)
-        return run(node, executor, stop)
-    except StartupError as exc:
-        return process.startup_failed(NODE_NAME, exc)
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    return process.run_node(NODE_NAME, args, Recorder, work=run)
 
 
 if __name__ == "__main__":

@@ -13,6 +13,9 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 
@@ -99,3 +102,37 @@ def startup_failed(name: str, exc: StartupError) -> int:
         logger.error(message)
     logger.error("not started: fix the parameters above")
     return 2
+
+
+def run_node(name: str, args: Sequence[str] | None, build: Callable[[], Node], *,
+             executor: Callable[[Node], Any] = lambda _: EventsExecutor(),
+             work: Callable[[Node, Any, Stop], int] | None = None,
+             finish: Callable[[Node], None] = lambda _: None) -> int:
+    """The life of a one-node executable; returns its exit status.
+
+    Starts ROS (2 if it refuses the arguments), builds the node (2, every problem logged, on a
+    :class:`StartupError`), adds it to ``executor(node)`` and runs ``work(node, executor, stop)``
+    for the status, or by default spins until stopped (0). ``finish(node)`` runs before the node
+    is destroyed, however it ends.
+    """
+    stop = start(name, args)
+    if stop is None:
+        return 2
+    node = None
+    try:
+        node = build()
+        spinner = executor(node)
+        spinner.add_node(node)
+        if work is not None:
+            return work(node, spinner, stop)
+        spin(spinner, stop)
+    except StartupError as exc:
+        return startup_failed(name, exc)
+    except ExternalShutdownException:
+        pass
+    finally:
+        if node is not None:
+            finish(node)
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
