@@ -399,9 +399,9 @@ def _executor(kind: str) -> Any:
 
 def main(args: Sequence[str] | None = None) -> int:
     """Run the node until Ctrl-C or SIGTERM; return 0, or 2 on bad parameters."""
-    return process.run_node(NODE_NAME, args, ActuatorSim,
-                            executor=lambda node: _executor(node.opts["executor"]),
-                            finish=lambda node: node.report(final=True))
+    return process.run_nodes(NODE_NAME, args, [(NODE_NAME, ActuatorSim)],
+                             executor=lambda nodes: _executor(nodes[0].opts["executor"]),
+                             finish=lambda nodes: nodes[0].report(final=True))
 
 
 if __name__ == "__main__":

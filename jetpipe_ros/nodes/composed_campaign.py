@@ -24,14 +24,9 @@ from __future__ import annotations
 import sys
 from collections.abc import Sequence
 
-import rclpy
-from rclpy.experimental import EventsExecutor
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from jetpipe_ros.nodes import actuator_sim, controller, id_recorder, process
-from jetpipe_ros.nodes.actuator_sim import ActuatorSim
-from jetpipe_ros.nodes.parameters import StartupError
 
 NAME = "composed_campaign"
 #: What the simulator must be in a composed campaign, whatever the parameter files say.
@@ -40,31 +35,13 @@ SIMULATOR = [Parameter("time_mode", value="sim"), Parameter("lockstep", value=Tr
 
 def main(args: Sequence[str] | None = None) -> int:
     """Run the campaign; 0 when done or stopped, 1 if unreachable, 2 on bad parameters."""
-    stop = process.start(NAME, args)
-    if stop is None:
-        return 2
-    nodes: list[Node] = []
-    sim = None
-    builders = [(actuator_sim.NODE_NAME, lambda: ActuatorSim(parameter_overrides=SIMULATOR)),
-                (controller.NODE_NAME, controller.Controller),
-                (id_recorder.NODE_NAME, id_recorder.Recorder)]
-    try:
-        for name, build in builders:
-            try:
-                nodes.append(build())
-            except StartupError as exc:
-                return process.startup_failed(name, exc)
-        sim, _, recorder = nodes
-        executor = EventsExecutor()
-        for node in nodes:
-            executor.add_node(node)
-        return id_recorder.run(recorder, executor, stop)
-    finally:
-        if sim is not None:
-            sim.report(final=True)
-        for node in nodes:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    return process.run_nodes(
+        NAME, args,
+        [(actuator_sim.NODE_NAME, lambda: actuator_sim.ActuatorSim(parameter_overrides=SIMULATOR)),
+         (controller.NODE_NAME, controller.Controller),
+         (id_recorder.NODE_NAME, id_recorder.Recorder)],
+        work=lambda nodes, executor, stop: id_recorder.run(nodes[2], executor, stop),
+        finish=lambda nodes: nodes[0].report(final=True))
 
 
 if __name__ == "__main__":

@@ -160,7 +160,7 @@ class Controller(Node):
 
 def main(args: Sequence[str] | None = None) -> int:
     """Run the controller until Ctrl-C or SIGTERM; 0, or 2 on bad parameters."""
-    return process.run_node(NODE_NAME, args, Controller)
+    return process.run_nodes(NODE_NAME, args, [(NODE_NAME, Controller)])
 
 
 if __name__ == "__main__":

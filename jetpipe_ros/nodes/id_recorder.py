@@ -16,9 +16,9 @@ simulator's ``mechanics.locked``, and for the regulated friction tests ``chamber
 the regulated pressures and the piston's place, set atomically) while the simulator waits. A
 phase with a load signal (the friction test's releasing load) publishes each sample's
 ``load_force`` just before its ``voltage_cmd``; the simulator applies them in arrival order and
-reports the load it applied on ``voltage_applied``, which the export reads. Each experiment is marked on
-``/id_recorder/events`` so ``jetpipe export BAG DATASET_DIR`` can cut the dataset. The node
-exits when the campaign is done. ``mode: record`` only records, until stopped.
+reports the load it applied on ``voltage_applied``, which the export reads. Each experiment is
+marked on ``/id_recorder/events`` so ``jetpipe export BAG DATASET_DIR`` can cut the dataset.
+The node exits when the campaign is done. ``mode: record`` only records, until stopped.
 
 SIGINT/SIGTERM close the bag cleanly: every message received up to the signal stays readable.
 Dropped messages (gaps in the 1 kHz stamps) are counted and reported with the kept fraction.
@@ -430,7 +430,8 @@ def run(node: Recorder, executor: Any, stop: process.Stop) -> int:
 
 def main(args: Sequence[str] | None = None) -> int:
     """Run until the campaign is done, or Ctrl-C/SIGTERM; 0, 1 (no simulator) or 2."""
-    return process.run_node(NODE_NAME, args, Recorder, work=run)
+    return process.run_nodes(NODE_NAME, args, [(NODE_NAME, Recorder)],
+                             work=lambda nodes, executor, stop: run(nodes[0], executor, stop))
 
 
 if __name__ == "__main__":

@@ -104,35 +104,42 @@ def startup_failed(name: str, exc: StartupError) -> int:
     return 2
 
 
-def run_node(name: str, args: Sequence[str] | None, build: Callable[[], Node], *,
-             executor: Callable[[Node], Any] = lambda _: EventsExecutor(),
-             work: Callable[[Node, Any, Stop], int] | None = None,
-             finish: Callable[[Node], None] = lambda _: None) -> int:
-    """The life of a one-node executable; returns its exit status.
+def run_nodes(name: str, args: Sequence[str] | None,
+              builders: Sequence[tuple[str, Callable[[], Node]]], *,
+              executor: Callable[[list[Node]], Any] = lambda _: EventsExecutor(),
+              work: Callable[[list[Node], Any, Stop], int] | None = None,
+              finish: Callable[[list[Node]], None] = lambda _: None) -> int:
+    """The life of an executable hosting one or more nodes on one executor; its exit status.
 
-    Starts ROS (2 if it refuses the arguments), builds the node (2, every problem logged, on a
-    :class:`StartupError`), adds it to ``executor(node)`` and runs ``work(node, executor, stop)``
-    for the status, or by default spins until stopped (0). ``finish(node)`` runs before the node
-    is destroyed, however it ends.
+    Starts ROS as ``name`` (2 if it refuses the arguments), builds the nodes from ``builders``
+    (node name, constructor) in order (2, the failing node's problems logged under its name, on
+    a :class:`StartupError`), adds them to ``executor(nodes)`` and runs
+    ``work(nodes, executor, stop)`` for the status, or by default spins until stopped (0).
+    ``finish(nodes)`` runs once all were built, however the run ends; every node built is
+    destroyed.
     """
     stop = start(name, args)
     if stop is None:
         return 2
-    node = None
+    nodes: list[Node] = []
     try:
-        node = build()
-        spinner = executor(node)
-        spinner.add_node(node)
+        for node_name, build in builders:
+            try:
+                nodes.append(build())
+            except StartupError as exc:
+                return startup_failed(node_name, exc)
+        spinner = executor(nodes)
+        for node in nodes:
+            spinner.add_node(node)
         if work is not None:
-            return work(node, spinner, stop)
+            return work(nodes, spinner, stop)
         spin(spinner, stop)
-    except StartupError as exc:
-        return startup_failed(name, exc)
     except ExternalShutdownException:
         pass
     finally:
-        if node is not None:
-            finish(node)
+        if len(nodes) == len(builders):
+            finish(nodes)
+        for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
