@@ -134,15 +134,16 @@ def export_bag(bag: str | Path, out_dir: str | Path, overwrite: bool = False,
                                 ("y", "joint_states", stamps),
                                 ("p1", "chamber1/pressure", stamps),
                                 ("p2", "chamber2/pressure", stamps),
-                                ("v", "joint_states", stamps)):
+                                ("v", "joint_states", stamps),
+                                ("f_load", "voltage_applied", stamps + dt_ns)):
             field = {"p1": "p", "p2": "p"}.get(key, key)
             cols[key], lost = _at(bag, name, signals[suffix], field, at)
             missing = max(missing, lost)
         if missing > MAX_MISSING * n:
             raise BagError(f"{bag}: experiment {name}: {missing} of {n} samples missing "
                            f"(more than {MAX_MISSING:.0%})")
-        load, _ = _at(bag, name, signals["voltage_applied"], "f_load", stamps + dt_ns)
-        cols["f_load"] = load if np.all(np.isfinite(load)) else np.full(n, float(e["load_force"]))
+        if not np.all(np.isfinite(cols["f_load"])):  # the simulator did not report its load
+            cols["f_load"] = np.full(n, float(e["load_force"]))
         extra = {"kind": e["kind"], "missing_samples": missing}
         if e.get("regulated"):
             extra["regulated"] = True

@@ -3,8 +3,9 @@
 One knob: a coarse grid over the whole range (the landscape of a delay, quantised to sub-steps,
 is flat in places and may have several minima), then a bounded Brent search around the best grid
 point. Several knobs: a grid over the first from the vanishing point of the others (and from each
-value a form-selecting knob lists in ``tries``), then bounded least squares (trust-region reflective) on the residual vector. Every fit has a budget of model
-evaluations and keeps the best point it has seen.
+value a form-selecting knob lists in ``tries``), then bounded least squares (trust-region
+reflective) on the residual vector. Every fit has a budget of model evaluations and keeps the
+best point it has seen.
 """
 
 from __future__ import annotations

@@ -9,10 +9,10 @@ nearly independent) gives t >= :data:`MIN_T`, or the error removed exceeds the w
 larger than anything noise could produce), or, when the holdout is too short to tell, a cross-check
 confirms it: the candidate refitted on the holdout and judged on the training data (the second
 fold of a two-fold cross-validation, both judgements out of sample) gives a t that, combined with
-the first by Stouffer's rule, (t + t_cross) / sqrt(2) >= :data:`MIN_T`. Candidates are ranked by a Bayesian information criterion
-over the held-out error with one sample per signal and window, so an extra parameter must pay for
-itself; a pair must also remove :data:`PAIR_GAIN` more of the gap than its better member, with
-significance, or the single effect is preferred.
+the first by Stouffer's rule, (t + t_cross) / sqrt(2) >= :data:`MIN_T`. Candidates are ranked
+by a Bayesian information criterion over the held-out error with one sample per signal and
+window, so an extra parameter must pay for itself; a pair must also remove :data:`PAIR_GAIN`
+more of the gap than its better member, with significance, or the single effect is preferred.
 
 The answer is ``none`` when no candidate explains the gap: either the nominal gap is within
 noise, or its cause is not among the candidates. Two
