@@ -54,3 +54,25 @@ def test_pressure_rates_eq11_eq12():
     dp1, dp2 = pressure_rates(0.0, 0.0, 4e5, 4e5, 0.1, 1.5e-4, 1.9e-4, 0.005433, rt, 1.0)
     assert dp1 == pytest.approx(-0.005433 * 4e5 * 0.1 / 1.5e-4)
     assert dp2 == pytest.approx(0.005433 * 4e5 * 0.1 / 1.9e-4)
+
+
+def test_flow_gains_scale_each_direction_and_keep_the_null():
+    q_in = chamber_inflow(COEF, 1.0, 3e5, 1e6)
+    q_out = chamber_inflow(COEF, -1.0, 6e5, 1e6)
+    assert q_in > 0 > q_out
+    assert chamber_inflow(COEF, 1.0, 3e5, 1e6, 0.9, 1.2) == pytest.approx(0.9 * q_in)
+    assert chamber_inflow(COEF, -1.0, 6e5, 1e6, 0.9, 1.2) == pytest.approx(1.2 * q_out)
+    # The null pressure of q(0, p) (4.165 bar) does not move with the gains.
+    root = optimize.brentq(lambda p: chamber_inflow(COEF, 0.0, p, 1e6, 0.7, 1.3), 2e5, 8e5)
+    assert root == pytest.approx(4.165e5, rel=1e-3)
+
+
+def test_valve_gain_moves_the_locked_equilibrium_to_the_null_of_the_scaled_voltage():
+    from jetpipe_ros.model import ModelParams, simulate
+
+    u, gain = 1.0, 1.1
+    p = ModelParams().with_values({"mechanics.locked": True, "valve.gain": gain})
+    tr = simulate(p, np.full(8000, u))
+    null = optimize.brentq(lambda x: chamber_inflow(COEF, gain * u, x, 1e6), 2e5, 9.9e5)
+    assert tr.p1[-1] == pytest.approx(null, rel=2e-3)
+    assert tr.u_eq[-1] == pytest.approx(gain * u, rel=1e-6)

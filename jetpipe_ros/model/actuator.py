@@ -51,6 +51,8 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
         delay_steps=valve.delay_steps,
         hysteresis=hysteresis,
         flow_coef=np.array(p["flow.coefficients"], dtype=float),
+        gain_charge=p["flow.gain_charge"], gain_discharge=p["flow.gain_discharge"],
+        valve_gain=p["valve.gain"],
         p_supply=effect("supply_pressure", "pressure", P_SUPPLY_NOMINAL),
         leak_cross=p["effects.leakage.cross_coefficient"] if laminar else 0.0,
         leak_atm=p["effects.leakage.atmosphere_coefficient"] if laminar else 0.0,

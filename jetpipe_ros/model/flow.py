@@ -41,19 +41,22 @@ def flow_polynomial(coef: np.ndarray, u: float, p_bar: float) -> float:
 
 
 @njit(cache=True, error_model="numpy")
-def chamber_inflow(coef: np.ndarray, u: float, p: float, p_supply: float) -> float:
+def chamber_inflow(coef: np.ndarray, u: float, p: float, p_supply: float,
+                   gain_charge: float = 1.0, gain_discharge: float = 1.0) -> float:
     """Mass flow [kg/s] into a chamber at pressure ``p`` [Pa] for equivalent voltage ``u`` [V].
 
     ``p_supply`` [Pa] is the actual supply; at 10 bar this is Eq. 8 with p clamped to [1, 10] bar
-    and no outflow at or below atmospheric pressure.
+    and no outflow at or below atmospheric pressure. ``gain_charge`` and ``gain_discharge``
+    multiply the flow where it fills (q > 0) and empties (q < 0) the chamber: an individual
+    valve's flow map differs from the paper's by a factor per direction.
     """
     span = (p_supply - P_ATM) / (P_SUPPLY_NOMINAL - P_ATM)
     p_map = 1.0 + (p - P_ATM) / span * 1e-5
     p_map = min(max(p_map, 1.0), 10.0)
     q = span * flow_polynomial(coef, u, p_map)
-    if q < 0.0 and p <= P_ATM:
-        return 0.0
-    return q
+    if q < 0.0:
+        return 0.0 if p <= P_ATM else gain_discharge * q
+    return gain_charge * q
 
 
 #: Heat capacity ratio of air.

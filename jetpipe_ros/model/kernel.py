@@ -66,6 +66,9 @@ class Constants(NamedTuple):
     delay_steps: int  #: valve transport delay [sub-steps]
     hysteresis: np.ndarray  #: play thresholds [V], one per element; empty = off
     flow_coef: np.ndarray  #: Eq. 8 coefficients
+    gain_charge: float  #: factor on the flow filling a chamber
+    gain_discharge: float  #: factor on the flow emptying a chamber
+    valve_gain: float  #: u_eq per u_f (jet-pipe deflection per volt relative to Eq. 5)
     p_supply: float  #: supply pressure [Pa]
     leak_cross: float  #: conductance chamber 1 -> 2 [kg/(s Pa)]
     leak_atm: float  #: conductance of each chamber to atmosphere [kg/(s Pa)]
@@ -150,7 +153,7 @@ def _valve_substep(c: Constants, xv: np.ndarray, tmp: np.ndarray, ring: np.ndarr
             play[i] = min(max(play[i], u_f - r), u_f + r)
             acc += play[i]
         u_f = acc / n_play
-    return min(max(u_f, U_EQ_MIN), U_EQ_MAX)
+    return min(max(c.valve_gain * u_f, U_EQ_MIN), U_EQ_MAX)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -212,8 +215,8 @@ def _chambers_substep(c: Constants, x: np.ndarray, u_eq: float, h: float) -> Non
     """Advance both chamber pressures (and gas temperatures) one sub-step (Eq. 11-13)."""
     p1 = x[P1]
     p2 = x[P2]
-    q1 = chamber_inflow(c.flow_coef, u_eq, p1, c.p_supply)
-    q2 = chamber_inflow(c.flow_coef, -u_eq, p2, c.p_supply)
+    q1 = chamber_inflow(c.flow_coef, u_eq, p1, c.p_supply, c.gain_charge, c.gain_discharge)
+    q2 = chamber_inflow(c.flow_coef, -u_eq, p2, c.p_supply, c.gain_charge, c.gain_discharge)
     q_x = c.leak_cross * (p1 - p2)
     q1 += -q_x - c.leak_atm * (p1 - P_ATM)
     q2 += q_x - c.leak_atm * (p2 - P_ATM)

@@ -110,10 +110,17 @@ _BASE: list[ParamSpec] = [
     _p("valve.lag_zero", 220.0, "Lead-lag zero of Eq. 9", "rad/s", 1.0, 1e6),
     _p("valve.lag_pole", 155.0, "Lead-lag pole of Eq. 9", "rad/s", 1.0, 1e6),
     _p("valve.command_limit", 3.4, "Valve command saturation |u|", "V", 0.1, 10.0),
+    _p("valve.gain", 1.0, "Jet-pipe deflection per volt relative to Eq. 5's midpoint lines: "
+       "u_eq = clip(gain u_f); an individual valve's torque motor differs by a few %", "",
+       0.2, 5.0),
     # Mass flow map, Eq. 8.
     _p("flow.coefficients", list(FLOW_COEFFICIENTS),
        "Eq. 8 polynomial coefficients (u in V, p in bar, result in g/s), paper order", "",
        length=21),
+    _p("flow.gain_charge", 1.0, "Factor on the Eq. 8 flow where it fills a chamber (q > 0): an "
+       "individual valve's receiver differs from the paper's by several %", "", 0.1, 10.0),
+    _p("flow.gain_discharge", 1.0, "Factor on the Eq. 8 flow where it empties a chamber "
+       "(q < 0)", "", 0.1, 10.0),
     # Chambers, Sec. 3 and Eq. 13.
     _p("chamber.gas_constant", 287.0, "Specific gas constant of air r", "J/(kg K)", 100.0, 1000.0),
     _p("chamber.temperature", 298.15, "Gas temperature T (isothermal)", "K", 200.0, 400.0),
