@@ -71,8 +71,9 @@ def test_outputs_follow_the_contract(lag_result):
     root, result = lag_result
     out = root / "out"
     doc = json.loads((out / "diagnosis.json").read_text())
-    assert doc["schema"] == "jetpipe.diagnosis/1"
-    assert set(doc) >= {"verdict", "gap", "localization", "ranking"}
+    assert doc["schema"] == "jetpipe.diagnosis/2"
+    assert set(doc) >= {"verdict", "calibration", "gap", "localization", "ranking"}
+    assert set(doc["calibration"]) >= {"knobs", "gap_before", "gap_after", "significant"}
     assert set(doc["localization"]) >= {"signals", "subsystems", "regimes", "frequency"}
     assert doc["gap"]["metric"] == "excess_nrmse_pct"
     html = (out / "report.html").read_text()
@@ -84,11 +85,54 @@ def test_outputs_follow_the_contract(lag_result):
     assert not [p for p in root.iterdir() if p.name.startswith(".")]
 
 
+def off_params(flow=0.9, friction=1.3):
+    """A bench whose flow map is ``flow`` x and friction forces ``friction`` x nominal, set on
+    the raw parameters (not through the calibration knobs)."""
+    nominal = ModelParams()
+    changes = {"flow.gain_charge": flow, "flow.gain_discharge": flow}
+    for ph in ("entry", "exit"):
+        for q in ("breakaway", "coulomb", "viscous"):
+            changes[f"friction.{ph}.{q}"] = [friction * c for c in nominal[f"friction.{ph}.{q}"]]
+    return nominal.with_values(changes)
+
+
+def test_parameters_that_are_off_are_recalibrated_not_blamed_on_an_effect(tmp_path):
+    # The issue's bench: flow map 10 % weaker, friction 30 % higher, nothing else.
+    make_dataset(tmp_path / "data", off_params(), seed=5)
+    result = diagnose(tmp_path / "data", tmp_path / "out", workers=2, quiet=True)
+    v, cal = result["verdict"], result["calibration"]
+    assert v["effect"] == "none" and cal["significant"]
+    assert cal["knobs"]["flow_gain_charge"] == pytest.approx(0.9, abs=0.02)
+    assert cal["knobs"]["friction_exit"] == pytest.approx(1.3, abs=0.1)
+    assert cal["gap_after"] <= 0.2 * cal["gap_before"]
+    assert result["gap"]["augmented"] == pytest.approx(cal["gap_after"])
+    assert "no unmodelled effect" in v["reason"] and "10% weaker" in v["reason"]
+    aug = load_params(tmp_path / "out" / "augmented.yaml")
+    assert aug.enabled_effects() == []
+    assert aug["flow.gain_charge"] == pytest.approx(cal["knobs"]["flow_gain_charge"])
+
+
+def test_an_effect_masked_by_parameters_that_are_off_is_found(tmp_path):
+    # The same bench with a 30 Hz valve lag: plain in the sweeps once recalibrated.
+    make_dataset(tmp_path / "data", off_params().with_effect("valve_lag",
+                                                             corner_frequency=30.0), seed=6)
+    result = diagnose(tmp_path / "data", tmp_path / "out", workers=2, quiet=True)
+    v, cal = result["verdict"], result["calibration"]
+    assert v["effect"] == "valve_lag" and cal["significant"]
+    assert v["params"]["corner_frequency"] == pytest.approx(30.0, rel=0.15)
+    assert cal["knobs"]["flow_gain_discharge"] == pytest.approx(0.9, abs=0.03)
+    assert result["gap"]["shrinkage"] >= 0.85
+    aug = load_params(tmp_path / "out" / "augmented.yaml")
+    assert aug.enabled_effects() == ["valve_lag"]
+    assert aug["flow.gain_discharge"] == pytest.approx(cal["knobs"]["flow_gain_discharge"])
+
+
 def test_nominal_data_gives_none(tmp_path):
     make_dataset(tmp_path / "data", ModelParams(), seed=4)
     result = diagnose(tmp_path / "data", tmp_path / "out", workers=2, quiet=True)
     assert result["verdict"]["effect"] == "none"
     assert result["gap"]["nominal"] < 0.5
+    assert not result["calibration"]["significant"]
 
 
 def test_split_fallbacks_are_stated(tmp_path):

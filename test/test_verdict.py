@@ -1,11 +1,12 @@
-"""The decision rules of the diagnosis on constructed rankings (no fitting)."""
+"""The decision rules of the diagnosis on constructed rankings (no fitting): effects, pairs,
+and which of calibration and effect the data need."""
 
 import numpy as np
 import pytest
 
 from jetpipe_ros.diagnosis.fit import Fit
 from jetpipe_ros.diagnosis.score import Score
-from jetpipe_ros.diagnosis.verdict import decide, paired_t, rank
+from jetpipe_ros.diagnosis.verdict import decide, paired_t, rank, settle
 from jetpipe_ros.model import ModelParams
 
 FLOOR = 1e-4
@@ -18,8 +19,11 @@ def score(gap_pct):
 
 
 def fit(name, gap_pct, windows):
-    effects = tuple(name.split("+"))
-    return Fit(effects=effects, values={e: {"x": 1.0} for e in effects}, params=ModelParams(),
+    groups = tuple(name.split("+"))
+    values = {g: {"x": 1.0} for g in groups}
+    if "calibration" in groups:
+        values["calibration"] = {"flow_gain_charge": 0.9, "friction_exit": 1.3}
+    return Fit(groups=groups, values=values, z=np.zeros(len(groups)), params=ModelParams(),
                train=score(gap_pct), holdout=score(gap_pct),
                holdout_windows=np.asarray(windows, dtype=float), evaluations=1, seconds=0.0)
 
@@ -99,3 +103,55 @@ def test_a_short_holdout_is_backed_by_the_cross_check(rng):
     r.t_cross = 4.0  # confirmed out of sample in the other fold
     assert r.explains
     assert decide(ranking, score(0.1)).winner.fit.name == "friction_dynamics"
+
+
+def _settle(rng, cal_gap, on_cal_gap, alone_gap, effect="valve_lag"):
+    """Nominal gap 2 %; the recalibration leaves ``cal_gap``; the effect on top of it leaves
+    ``on_cal_gap``; the effect alone (nominal parameters) leaves ``alone_gap`` [%]."""
+    level = lambda g: FLOOR + (g / 100) ** 2  # noqa: E731
+    nom = windows(level(2.0), rng)
+    cal = fit("calibration", cal_gap, windows(level(cal_gap), rng))
+    (cal_row,) = rank([cal], score(2.0), nom, 1e-3)
+    w = fit(f"calibration+{effect}", on_cal_gap, windows(level(on_cal_gap), rng))
+    on_cal = decide(rank([w], cal.holdout, cal.holdout_windows, 1e-3), cal.holdout)
+    b = fit(effect, alone_gap, windows(level(alone_gap), rng))
+    alone = decide(rank([b], score(2.0), nom, 1e-3), score(2.0))
+    given = effect_alone = None
+    if on_cal.winner is not None:
+        (given,) = rank([w], b.holdout, b.holdout_windows, 1e-3)
+        (effect_alone,) = rank([b], score(2.0), nom, 1e-3)
+    return settle(cal_row, on_cal, alone, given, effect_alone)
+
+
+def test_parameters_off_and_no_effect_is_a_calibration(rng):
+    s = _settle(rng, cal_gap=0.05, on_cal_gap=0.05, alone_gap=1.9)
+    assert s.verdict.winner is None and s.calibrated and s.final.name == "calibration"
+    assert "no unmodelled effect" in s.reason and "charging 10% weaker" in s.reason
+    assert s.alternative is None
+
+
+def test_parameters_off_and_an_effect_keep_both(rng):
+    s = _settle(rng, cal_gap=1.0, on_cal_gap=0.05, alone_gap=1.0)
+    assert s.verdict.winner.fit.effects == ("valve_lag",) and s.calibrated
+    assert s.final.calibrated and s.given.explains
+    assert "were off" in s.reason
+
+
+def test_an_effect_alone_drops_a_calibration_it_does_not_need(rng):
+    # The recalibration stood in for part of the effect; given the effect it adds nothing.
+    s = _settle(rng, cal_gap=1.0, on_cal_gap=0.05, alone_gap=0.05)
+    assert s.verdict.winner.fit.name == "valve_lag" and not s.calibrated
+    assert not s.final.calibrated and not s.given.explains
+
+
+def test_an_effect_that_mimics_a_calibration_is_reported_as_the_alternative(rng):
+    # supply_pressure alone explains the gap as well as recalibrating 8 knobs: fewer knobs win,
+    # the recalibration is named as the alternative the data cannot rule out.
+    s = _settle(rng, cal_gap=0.10, on_cal_gap=0.10, alone_gap=0.09, effect="supply_pressure")
+    assert s.final.name == "supply_pressure" and not s.calibrated
+    assert s.alternative.fit.name == "calibration" and "cannot tell" in s.reason
+
+
+def test_nothing_to_explain_gives_the_nominal_model(rng):
+    s = _settle(rng, cal_gap=1.95, on_cal_gap=1.95, alone_gap=1.95)
+    assert s.final is None and not s.calibrated and s.verdict.winner is None

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from jetpipe_ros.model import EFFECTS, ModelParams
+from jetpipe_ros.model import ModelParams
 
 
 @dataclass(frozen=True)
@@ -48,26 +48,41 @@ class Knob:
 
 
 @dataclass(frozen=True)
-class Candidate:
-    """An effect as a candidate cause: fitted knobs, fixed settings, a typical size."""
+class KnobGroup:
+    """Knobs fitted together and the way they change a model: a candidate effect, or the
+    calibration of the nominal parameters (:mod:`calibration`)."""
 
-    effect: str
+    name: str
     knobs: tuple[Knob, ...]
-    typical: dict[str, float]
-    fixed: dict[str, Any] = field(default_factory=dict)
-
-    @property
-    def subsystem(self) -> str:
-        """valve, chamber, mechanics or sensors."""
-        return EFFECTS[self.effect]
 
     def start(self) -> np.ndarray:
-        """Unit-scaled knobs at the effect's vanishing point."""
+        """Unit-scaled knobs at the point where the group changes nothing."""
         return np.array([k.to_unit(k.off) for k in self.knobs])
 
     def values(self, z: np.ndarray) -> dict[str, float]:
-        """The effect's parameters for the unit-scaled vector ``z``."""
+        """The group's parameters for the unit-scaled vector ``z``."""
         return {k.name: k.to_value(float(zi)) for k, zi in zip(self.knobs, z)}
+
+    def to_unit(self, values: dict[str, float]) -> np.ndarray:
+        """The unit-scaled vector of ``values`` (inverse of :meth:`values`)."""
+        return np.array([k.to_unit(values[k.name]) for k in self.knobs])
+
+    def apply(self, params: ModelParams, values: dict[str, float]) -> ModelParams:
+        """``params`` changed by this group at ``values``."""
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class Candidate(KnobGroup):
+    """An effect as a candidate cause: fitted knobs, fixed settings, a typical size."""
+
+    typical: dict[str, float] = field(default_factory=dict)
+    fixed: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def effect(self) -> str:
+        """The effect's name (DESIGN.md s.3)."""
+        return self.name
 
     def apply(self, params: ModelParams, values: dict[str, float]) -> ModelParams:
         """``params`` with this effect switched on at ``values``."""

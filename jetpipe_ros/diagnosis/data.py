@@ -47,12 +47,20 @@ class Record:
         """Constant-volume test: the position is not a signal to explain."""
         return self.entry.locked
 
+    @property
+    def regulated(self) -> bool:
+        """Friction test on the regulated rig (``regulated: true``): regulators, not the valve,
+        hold the chamber pressures, so only the motion is the model's to explain."""
+        return self.entry.extra.get("regulated") is True
+
     def signal(self, name: str) -> np.ndarray:
         """A measured signal by name (y, p1, p2)."""
         return getattr(self, name)
 
     def signals(self) -> tuple[str, ...]:
         """The signals scored for this experiment."""
+        if self.regulated:
+            return ("y",)
         return ("p1", "p2") if self.locked else SIGNALS
 
 

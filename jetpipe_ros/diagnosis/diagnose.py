@@ -1,17 +1,22 @@
-"""``jetpipe diagnose``: where the model departs from the measurements, which unmodelled effect
-causes it, and how far the gap shrinks once that effect is modelled (DESIGN.md s.6).
+"""``jetpipe diagnose``: where the model departs from the measurements, whether its nominal
+parameters are off, which unmodelled effect causes the rest, and how far the gap shrinks once
+both are corrected (DESIGN.md s.6).
 
 Steps, each reported as progress: read and split the dataset; score the nominal model and locate
 its gap (signals, subsystems, regimes, frequency bands); check which candidates the experiments
-could show at all; fit every candidate on the training data (in parallel processes) and score it
-on the held-out data; try pairs when one effect leaves a significant gap; cross-check, with the
-roles of the data exchanged, a candidate the short holdout cannot confirm alone; decide; write
-``diagnosis.json``, ``report.html`` and ``augmented.yaml``. The outputs are written to a temporary
-directory and moved into place only when all three are complete.
+could show at all; recalibrate the nominal parameters (:mod:`calibration`) on the training data;
+fit every candidate alone and on top of the recalibrated model, refit the most promising jointly
+with the calibration, and score everything on the held-out data; try pairs when one effect
+leaves a significant gap; cross-check, with the roles of the data exchanged, what the short
+holdout cannot confirm alone; decide which of calibration and effect the data need
+(:func:`verdict.settle`); write ``diagnosis.json``, ``report.html`` and ``augmented.yaml``. The
+outputs are written to a temporary directory and moved into place only when all three are
+complete.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
@@ -19,30 +24,39 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
 from jetpipe_ros.dataset import read_dataset
+from jetpipe_ros.diagnosis import calibration
+from jetpipe_ros.diagnosis.calibration import CALIBRATION
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate
 from jetpipe_ros.diagnosis.data import SIGNALS, Prepared, prepare, swapped
-from jetpipe_ros.diagnosis.fit import Fit, fit
+from jetpipe_ros.diagnosis.fit import BUDGET, Fit
+from jetpipe_ros.diagnosis.jobs import Fitter, Job
 from jetpipe_ros.diagnosis.localize import by_regime, frequency_response, position_error_pct
 from jetpipe_ros.diagnosis.noise_floor import calibrate
 from jetpipe_ros.diagnosis.prediction import HORIZON, predict
 from jetpipe_ros.diagnosis.score import METRIC, predict_all, score, window_errors
-from jetpipe_ros.diagnosis.verdict import Ranked, Verdict, decide, needs_pairs, paired_t, rank
+from jetpipe_ros.diagnosis.verdict import (Ranked, Settled, decide, needs_pairs,
+                                           paired_t, rank, settle)
 from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError, simulate
 
-SCHEMA = "jetpipe.diagnosis/1"
+SCHEMA = "jetpipe.diagnosis/2"
 OUTPUTS = ("diagnosis.json", "report.html", "augmented.yaml")
 #: Candidates whose typical-size signature is below this fraction of the noise variance are
 #: reported as invisible in the experiments given.
 VISIBLE = 0.02
 #: Candidates refitted jointly with the best single effect as pairs.
 PAIR_POOL = 2
+#: Effects (best by training error on the recalibrated model) refitted jointly with the
+#: calibration knobs, and the model-evaluation budgets of the calibration and the joint fits.
+JOINT_POOL = 3
+CALIBRATION_BUDGET = 150
+JOINT_BUDGET = 150
+CAL = CALIBRATION.name
 
 
 class Progress:
@@ -58,81 +72,73 @@ class Progress:
                   flush=True)
 
 
-_WORKER: dict = {}  #: the data a fitting process was started with (see :func:`fit_all`)
+def stacked(below: Fit, above: Fit) -> Fit:
+    """``above`` (fitted on ``below``'s model, with ``below``'s knobs held) as one fit of all
+    their groups: same model and scores, values and knobs of both."""
+    return dataclasses.replace(above, groups=below.groups + above.groups,
+                               values={**below.values, **above.values},
+                               z=np.concatenate([below.z, above.z]))
 
 
-def _init_worker(prepared: Prepared, nominal: ModelParams) -> None:
-    threadpool_limits(1)  # see diagnose()
-    _WORKER.update(prepared=prepared, nominal=nominal)
+def fit_on_calibration(fitter: Fitter, nominal: ModelParams, cal: Fit, names: Sequence[str],
+                       progress: Callable[[str], None]) -> list[Fit]:
+    """Every candidate fitted on top of the recalibrated model ``cal`` (its knobs held); the
+    :data:`JOINT_POOL` that lower the training error most then refitted jointly with the
+    calibration knobs (which the effect may partly have been standing in for)."""
+    progress(f"fitting {len(names)} candidates on the recalibrated model")
+    onto = [stacked(cal, f) for f in fitter.run([Job(cal.params, (e,)) for e in names])]
+    top = sorted(onto, key=lambda f: f.train.total)[:JOINT_POOL]
+    progress(f"refitting {', '.join(f.name for f in top)} jointly with the calibration")
+    joint = fitter.run([Job(nominal, f.groups, f.z, JOINT_BUDGET) for f in top],
+                       [f"{f.name} + calibration, jointly" for f in top])
+    refit = {f.name: f for f in joint}
+    return [refit[f.name] if f.name in refit and refit[f.name].train.total <= f.train.total
+            else f for f in onto]
 
 
-def _fit_job(prepared: Prepared, nominal: ModelParams, names: tuple[str, ...],
-             start: np.ndarray | None) -> Fit:
-    return fit(prepared, nominal, [CANDIDATES[n] for n in names], start)
-
-
-def _worker_job(names: tuple[str, ...], start: np.ndarray | None) -> Fit:
-    return _fit_job(_WORKER["prepared"], _WORKER["nominal"], names, start)
-
-
-def fit_all(prepared: Prepared, nominal: ModelParams, jobs: Sequence[tuple[str, ...]],
-            starts: dict[tuple[str, ...], np.ndarray], workers: int,
-            progress: Callable[[str], None]) -> list[Fit]:
-    """Fit each tuple of candidates, in ``workers`` processes (1 = in this process)."""
-    fits: list[Fit] = []
-    if workers <= 1 or len(jobs) == 1:
-        for i, names in enumerate(jobs, 1):
-            f = _fit_job(prepared, nominal, names, starts.get(names))
-            fits.append(f)
-            progress(f"  [{i}/{len(jobs)}] {f.name}: held-out gap {f.holdout.gap:.2f} % "
-                     f"({f.evaluations} runs, {f.seconds:.1f} s)")
-        return fits
-    # The data go to each process once, not with every job.
-    with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), initializer=_init_worker,
-                             initargs=(prepared, nominal)) as pool:
-        futures = [pool.submit(_worker_job, names, starts.get(names)) for names in jobs]
-        for i, fut in enumerate(as_completed(futures), 1):
-            f = fut.result()
-            fits.append(f)
-            progress(f"  [{i}/{len(jobs)}] {f.name}: held-out gap {f.holdout.gap:.2f} % "
-                     f"({f.evaluations} runs, {f.seconds:.1f} s)")
-    order = {names: i for i, names in enumerate(jobs)}
-    return sorted(fits, key=lambda f: order[f.effects])
-
-
-def fit_pairs(best: Fit, candidates: Sequence[Candidate], prepared: Prepared,
-              nominal: ModelParams, workers: int, progress: Callable[[str], None]) -> list[Fit]:
-    """Pairs by forward selection: every other candidate fitted on top of the best single
-    effect (held at its fitted values), the :data:`PAIR_POOL` that lower the training error
+def fit_pairs(fitter: Fitter, nominal: ModelParams, best: Fit, names: Sequence[str],
+              progress: Callable[[str], None]) -> list[Fit]:
+    """Pairs by forward selection: every other candidate fitted on top of the best (held at its
+    fitted values, calibration included), the :data:`PAIR_POOL` that lower the training error
     most then refitted jointly with it. Selection uses the training data only."""
-    (first,) = best.effects
-    others = [c.effect for c in candidates if c.effect != first]
-    progress(f"{first} leaves {best.holdout.gap:.2f} % of the gap: fitting each other "
+    others = [e for e in names if e not in best.effects]
+    progress(f"{best.name} leaves {best.holdout.gap:.2f} % of the gap: fitting each other "
              f"candidate on top of it")
-    added = fit_all(prepared, best.params, [(e,) for e in others], {}, workers, progress)
+    added = [stacked(best, f) for f in fitter.run([Job(best.params, (e,)) for e in others],
+                                                 [f"{e} on top" for e in others])]
     chosen = sorted(added, key=lambda f: f.train.total)[:PAIR_POOL]
-    pairs = [(first, f.effects[0]) for f in chosen]
-    starts = {(first, f.effects[0]): np.array(
-        [k.to_unit(v[e][k.name]) for e, v in ((first, best.values), (f.effects[0], f.values))
-         for k in CANDIDATES[e].knobs]) for f in chosen}
-    progress(f"refitting {', '.join('+'.join(p) for p in pairs)} jointly")
-    return fit_all(prepared, nominal, pairs, starts, workers, progress)
+    progress(f"refitting {', '.join(f.name for f in chosen)} jointly")
+    return fitter.run([Job(nominal, f.groups, f.z, JOINT_BUDGET) for f in chosen])
 
 
-def cross_check(ranking: Sequence[Ranked], prepared: Prepared, nominal: ModelParams,
-                nominal_preds, workers: int, progress: Callable[[str], None]) -> None:
-    """Refit the candidates the holdout alone cannot confirm on the holdout, judge them on the
-    training data, and store the paired t in their ranking rows (:attr:`Ranked.t_cross`)."""
-    todo = [r for r in ranking if r.needs_cross_check]
+def cross_check(rows: Sequence[Ranked], fitter: Fitter, nominal: ModelParams, nom_preds,
+                progress: Callable[[str], None]) -> None:
+    """Refit the rows the holdout alone cannot confirm on the holdout, judge them on the
+    training data against their reference refitted the same way (the nominal model, or the
+    calibration alone for an effect on the recalibrated model), and store the paired t in the
+    rows (:attr:`Ranked.t_cross`)."""
+    todo = [r for r in rows if r.needs_cross_check]
     if not todo:
         return
-    other = swapped(prepared)
-    before = window_errors(other, nominal_preds, "holdout")
-    progress(f"cross-check of {', '.join(r.fit.name for r in todo)}: refitted on the holdout, "
-             f"judged on the training data")
-    fits = fit_all(other, nominal, [r.fit.effects for r in todo], {}, workers, progress)
+    progress(f"cross-check of {', '.join(_label(r.fit) for r in todo)}: refitted on the "
+             f"holdout, judged on the training data")
+    jobs = [Job(nominal, r.fit.groups, CALIBRATION.start() if not r.fit.effects else None,
+                CALIBRATION_BUDGET if not r.fit.effects else
+                JOINT_BUDGET if r.fit.calibrated else BUDGET, swapped=True) for r in todo]
+    on_cal = any(r.fit.calibrated and r.fit.effects for r in todo)
+    if on_cal:
+        jobs.append(Job(nominal, (CAL,), CALIBRATION.start(), CALIBRATION_BUDGET,
+                        swapped=True))
+    fits = fitter.run(jobs, [f"{_label(r.fit)} (cross-check)" for r in todo] +
+                      (["calibration (cross-check reference)"] if on_cal else []))
+    before = window_errors(fitter.other, nom_preds, "holdout")
     for r, f in zip(todo, fits):
-        r.t_cross = paired_t(before, f.holdout_windows)
+        ref = fits[-1].holdout_windows if r.fit.calibrated and r.fit.effects else before
+        r.t_cross = paired_t(ref, f.holdout_windows)
+
+
+def _label(f: Fit) -> str:
+    return f"{f.name} on the recalibrated model" if f.calibrated and f.effects else f.name
 
 
 def visibility(prepared: Prepared, nominal: ModelParams, base_preds, cand: Candidate) -> float:
@@ -161,6 +167,8 @@ def subsystem_gaps(prepared: Prepared, nominal: ModelParams) -> dict:
                       ("y",))
     offsets = []
     for rec in prepared.records:
+        if rec.regulated:
+            continue
         pred = predict(nominal, rec, prepared.dt, "chambers")
         steady = np.abs(np.gradient(rec.p1, prepared.dt)) < 2e4
         steady[: rec.t.size // 10] = False
@@ -233,6 +241,7 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
     progress(f"reading {dataset_dir}")
     dataset = read_dataset(dataset_dir)
     prepared = prepare(dataset)
+    dt = prepared.dt
     progress(f"{len(prepared.records)} experiments, {prepared.seconds('train'):.1f} s train, "
              f"{prepared.seconds('holdout'):.1f} s holdout; {prepared.split_note}")
 
@@ -246,22 +255,47 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
     subsystems = subsystem_gaps(prepared, nominal)
 
     candidates = [c for name, c in CANDIDATES.items() if name not in already]
+    names = [c.effect for c in candidates]
     progress("how visible each candidate would be at its typical size")
     seen = {c.effect: visibility(prepared, nominal, nom_all, c) for c in candidates}
 
     workers = max(1, min(workers, os.cpu_count() or 1))
-    progress(f"fitting {len(candidates)} candidates on the training data ({workers} processes)")
-    fits = fit_all(prepared, nominal, [(c.effect,) for c in candidates], {}, workers, progress)
-    ranking = rank(fits, nom_hold, nom_windows, prepared.dt)
-    if ranking and needs_pairs(ranking[0], nom_hold):
-        fits += fit_pairs(ranking[0].fit, candidates, prepared, nominal, workers, progress)
-        ranking = rank(fits, nom_hold, nom_windows, prepared.dt)
-    cross_check(ranking, prepared, nominal, nom_all, workers, progress)
-    verdict = decide(ranking, nom_hold)
+    with Fitter(prepared, swapped(prepared), workers, progress) as fitter:
+        progress(f"recalibrating the nominal parameters on the training data "
+                 f"({len(CALIBRATION.knobs)} knobs, {workers} processes)")
+        (cal,) = fitter.run([Job(nominal, (CAL,), CALIBRATION.start(), CALIBRATION_BUDGET)])
+        (cal_row,) = rank([cal], nom_hold, nom_windows, dt)
+        progress(f"recalibrated: held-out gap {nom_hold.gap:.2f} % -> {cal.holdout.gap:.2f} % "
+                 f"({', '.join(calibration.describe(cal.values[CAL])) or 'no knob off'})")
+        on_cal = fit_on_calibration(fitter, nominal, cal, names, progress)
+        ranking = rank(on_cal, cal.holdout, cal.holdout_windows, dt)
+        if ranking and needs_pairs(ranking[0], cal.holdout):
+            on_cal += fit_pairs(fitter, nominal, ranking[0].fit, names, progress)
+            ranking = rank(on_cal, cal.holdout, cal.holdout_windows, dt)
+        cross_check([cal_row, *ranking[:2]], fitter, nominal, nom_all, progress)
+        on_cal_verdict = decide(ranking, cal.holdout)
+        given = effect_alone = None
+        alone_ranking: list[Ranked] = []
+        if on_cal_verdict.winner is not None:
+            # Is the recalibration needed beside the effect? The effect alone, without it:
+            w = on_cal_verdict.winner.fit
+            progress(f"fitting {w.name} without the calibration")
+            (b,) = fitter.run([Job(nominal, w.effects, w.z[len(cal.z):], JOINT_BUDGET)])
+            (given,) = rank([w], b.holdout, b.holdout_windows, dt)
+            (effect_alone,) = rank([b], nom_hold, nom_windows, dt)
+        else:
+            # No effect beside the calibration: could an effect alone explain the gap instead?
+            progress(f"fitting {len(names)} candidates on the nominal model")
+            alone_ranking = rank(fitter.run([Job(nominal, (e,)) for e in names]), nom_hold,
+                                 nom_windows, dt)
+            cross_check(alone_ranking[:2], fitter, nominal, nom_all, progress)
+        alone_verdict = decide(alone_ranking, nom_hold)
+    settled = settle(cal_row, on_cal_verdict, alone_verdict, given, effect_alone)
 
     progress("scoring the augmented model")
-    augmented = verdict.winner.fit.params if verdict.winner else nominal
-    aug_all = predict_all(augmented, prepared, None) if verdict.winner else nom_all
+    final = settled.final
+    augmented = final.params if final is not None else nominal
+    aug_all = predict_all(augmented, prepared, None) if final is not None else nom_all
     aug_hold = score(prepared, aug_all, "holdout")
     preds = {"nominal": nom_all, "augmented": aug_all}
     stroke = nominal["mechanics.stroke"]
@@ -273,33 +307,69 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
         "regimes": by_regime(prepared, preds, "holdout", stroke),
         "frequency": frequency_response(prepared, preds),
     }
+    verdict = settled.verdict
     separating = None
-    if verdict.ambiguous and verdict.runner_up is not None:
+    if settled.alternative is not None:
+        separating = separating_experiment(settled.final.params,
+                                           settled.alternative.fit.params, prepared)
+    elif verdict.ambiguous and verdict.runner_up is not None:
         separating = separating_experiment(verdict.winner.fit.params,
                                            verdict.runner_up.fit.params, prepared)
-    result = _result(prepared, nominal, verdict, ranking, nom_hold, aug_hold, localization,
-                     seen, separating, preds)
+    result = _result(prepared, nominal, settled, ranking, alone_ranking, cal, cal_row, nom_hold,
+                     aug_hold, localization, seen, separating, preds)
     progress(f"writing {out_dir}")
     _write_outputs(out_dir, result, augmented, prepared, preds)
     progress(f"verdict: {result['verdict']['effect']} "
-             f"(confidence {result['verdict']['confidence']:.2f}); {verdict.reason}")
+             f"(confidence {result['verdict']['confidence']:.2f}); "
+             f"{result['verdict']['reason']}")
     return result
 
 
-def _result(prepared: Prepared, nominal: ModelParams, verdict: Verdict,
-            ranking: Sequence[Ranked], nom_hold, aug_hold, localization: dict,
-            seen: dict[str, float], separating: dict | None, preds: dict) -> dict:
+def _calibration_json(cal: Fit, cal_row: Ranked, settled: Settled, nom_hold) -> dict:
+    """The ``calibration`` section: the knobs the final model uses (factors against nominal),
+    the held-out gap before and after recalibration alone, and whether it is needed."""
+    final = settled.final
+    values = (final.values[CAL] if final is not None and final.calibrated
+              else cal.values[CAL])
+    moved = {k: values[k] / cal.values[CAL][k] for k in values}
+    return {
+        "knobs": values,
+        "significant": settled.calibrated,
+        "summary": calibration.describe(values) if settled.calibrated else [],
+        "gap_before": nom_hold.gap, "gap_after": cal.holdout.gap,
+        "shrinkage": cal_row.shrinkage, "t": cal_row.t, "t_cross_check": cal_row.t_cross,
+        "significant_alone": cal_row.explains,
+        "significant_given_effect": settled.given.explains if settled.given else None,
+        "shrinkage_given_effect": settled.given.shrinkage if settled.given else None,
+        "at_bound": calibration.at_bound(values),
+        "recalibration_alone": cal.values[CAL],
+        # Knobs the effect took over: factor with the effect / factor of recalibration alone.
+        "traded_with_effect": {k: m for k, m in moved.items() if abs(m - 1.0) >= 0.05}
+        if final is not None and final.calibrated and final.effects else {},
+        "parameters": {k: list(calibration.DESCRIPTIONS[k][1]) for k in values},
+    }
+
+
+def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
+            ranking: Sequence[Ranked], alone_ranking: Sequence[Ranked], cal: Fit,
+            cal_row: Ranked, nom_hold, aug_hold, localization: dict, seen: dict[str, float],
+            separating: dict | None, preds: dict) -> dict:
+    verdict = settled.verdict
     win = verdict.winner
     effects = list(win.fit.effects) if win else []
+    values = {e: win.fit.values[e] for e in effects} if win else {}
     verdict_json = {
         "effect": win.fit.name if win else "none",
         "effects": effects,
         "subsystem": "+".join(dict.fromkeys(EFFECTS[e] for e in effects)) if win else "none",
-        "params": (win.fit.values[effects[0]] if len(effects) == 1 else win.fit.values)
-        if win else {},
+        "params": (values[effects[0]] if len(effects) == 1 else values) if win else {},
         "confidence": verdict.confidence,
-        "reason": verdict.reason,
+        "reason": settled.reason,
+        "effect_reason": verdict.reason,
         "ambiguous_with": verdict.runner_up.fit.name if verdict.ambiguous else None,
+        "alternative": ({"explanation": settled.alternative.fit.name,
+                         "holdout_gap": settled.alternative.fit.holdout.gap}
+                        if settled.alternative else None),
         "separating_experiment": separating,
     }
     invisible = sorted(e for e, v in seen.items() if v < VISIBLE)
@@ -310,14 +380,22 @@ def _result(prepared: Prepared, nominal: ModelParams, verdict: Verdict,
         for band, vals in localization["frequency"].get("bands", {}).items():
             paper[label][f"gain_error_pct {band}"] = vals[label]["gain_error_pct"]
             paper[label][f"phase_error_deg {band}"] = vals[label]["phase_error_deg"]
+    alone_rows = {r.fit.name: r for r in alone_ranking}
+    rows = []
+    for r in ranking:
+        row = r.to_json(cal.holdout)
+        a = alone_rows.get(r.fit.name)
+        row["alone"] = a.to_json(nom_hold) if a is not None else None
+        rows.append(row)
     return {
         "schema": SCHEMA,
         "verdict": verdict_json,
+        "calibration": _calibration_json(cal, cal_row, settled, nom_hold),
         "gap": {"metric": METRIC, "nominal": nom_hold.gap, "augmented": aug_hold.gap,
                 "shrinkage": 1.0 - aug_hold.gap / nom_hold.gap if nom_hold.gap > 0 else 0.0,
-                "on": "holdout", "paper_metrics": paper},
+                "recalibrated": cal.holdout.gap, "on": "holdout", "paper_metrics": paper},
         "localization": localization,
-        "ranking": [r.to_json(nom_hold) for r in ranking],
+        "ranking": rows,
         "visibility": {"at_typical_size": seen, "too_small_to_see": invisible,
                        "threshold": VISIBLE},
         "data": {"split": prepared.split_note, "notes": prepared.notes,

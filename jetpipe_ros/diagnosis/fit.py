@@ -1,11 +1,14 @@
-"""Fitting candidate effects on the training experiments and scoring them on the held-out ones.
+"""Fitting knob groups (candidate effects, the calibration) on the training experiments and
+scoring them on the held-out ones.
 
 One knob: a coarse grid over the whole range (the landscape of a delay, quantised to sub-steps,
 is flat in places and may have several minima), then a bounded Brent search around the best grid
-point. Several knobs: a grid over the first from the vanishing point of the others (and from each
-value a form-selecting knob lists in ``tries``), then bounded least squares (trust-region
-reflective) on the residual vector. Every fit has a budget of model evaluations and keeps the
-best point it has seen.
+point. Several knobs: a grid over the first knob of the first effect from the neutral point of
+the others (and from each value a form-selecting knob lists in ``tries``), or a given start,
+then bounded least squares on the residual vector (trust-region reflective, each knob scaled by
+its column of the Jacobian: calibration knobs and an effect trade off along narrow valleys that
+an unscaled step crawls along). Every fit has a budget of model evaluations and keeps the best
+point it has seen.
 """
 
 from __future__ import annotations
@@ -17,7 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
-from jetpipe_ros.diagnosis.candidates import Candidate
+from jetpipe_ros.diagnosis.calibration import NAME as CALIBRATION
+from jetpipe_ros.diagnosis.candidates import KnobGroup
 from jetpipe_ros.diagnosis.data import Prepared
 from jetpipe_ros.diagnosis.score import (Score, predict_all, residual_vector, score,
                                          window_errors)
@@ -29,10 +33,12 @@ BUDGET = 40
 
 @dataclass
 class Fit:
-    """A fitted candidate (one effect or a pair) with its train and held-out scores."""
+    """Fitted knob groups (an effect or a pair, with or without the calibration) with their
+    train and held-out scores."""
 
-    effects: tuple[str, ...]
-    values: dict[str, dict[str, float]]  #: fitted parameters per effect
+    groups: tuple[str, ...]  #: the fitted groups' names, in fitting order
+    values: dict[str, dict[str, float]]  #: fitted parameters per group
+    z: np.ndarray  #: the fitted knobs, unit-scaled, concatenated in group order
     params: ModelParams  #: the augmented model
     train: Score
     holdout: Score
@@ -41,9 +47,19 @@ class Fit:
     seconds: float
 
     @property
+    def effects(self) -> tuple[str, ...]:
+        """The unmodelled effects among the groups."""
+        return tuple(g for g in self.groups if g != CALIBRATION)
+
+    @property
+    def calibrated(self) -> bool:
+        """True when the calibration knobs were fitted too."""
+        return CALIBRATION in self.groups
+
+    @property
     def name(self) -> str:
-        """The effect, or the effects joined with '+'."""
-        return "+".join(self.effects)
+        """The effects joined with '+' (``calibration`` when there is none)."""
+        return "+".join(self.effects) or CALIBRATION
 
 
 class _BudgetSpent(Exception):
@@ -51,10 +67,10 @@ class _BudgetSpent(Exception):
 
 
 class _Objective:
-    """Training residuals as a function of the unit-scaled knobs of one or more candidates."""
+    """Training residuals as a function of the unit-scaled knobs of one or more groups."""
 
     def __init__(self, prepared: Prepared, nominal: ModelParams,
-                 candidates: Sequence[Candidate], budget: int) -> None:
+                 candidates: Sequence[KnobGroup], budget: int) -> None:
         self.prepared = prepared
         self.nominal = nominal
         self.candidates = tuple(candidates)
@@ -71,7 +87,7 @@ class _Objective:
         return p
 
     def values(self, z: np.ndarray) -> dict[str, dict[str, float]]:
-        return {c.effect: c.values(zc) for c, zc in
+        return {c.name: c.values(zc) for c, zc in
                 zip(self.candidates, np.split(z, np.cumsum(self.sizes)[:-1]))}
 
     def residuals(self, z: np.ndarray) -> np.ndarray:
@@ -92,9 +108,10 @@ class _Objective:
         return float(r @ r)
 
 
-def fit(prepared: Prepared, nominal: ModelParams, candidates: Sequence[Candidate],
+def fit(prepared: Prepared, nominal: ModelParams, candidates: Sequence[KnobGroup],
         start: np.ndarray | None = None, budget: int = BUDGET) -> Fit:
-    """Fit ``candidates`` (their knobs jointly) on the training data; score on the holdout."""
+    """Fit the knob groups ``candidates`` jointly on the training data, applied in order to
+    ``nominal``; score on the holdout. Without ``start`` the first knob is searched on a grid."""
     began = time.perf_counter()
     obj = _Objective(prepared, nominal, candidates, budget)
     try:
@@ -104,7 +121,7 @@ def fit(prepared: Prepared, nominal: ModelParams, candidates: Sequence[Candidate
             _brent(obj, start)
         else:
             optimize.least_squares(obj.residuals, np.clip(start, 1e-6, 1 - 1e-6),
-                                   bounds=(0.0, 1.0), diff_step=0.03, x_scale=1.0,
+                                   bounds=(0.0, 1.0), diff_step=0.03, x_scale="jac",
                                    xtol=1e-3, ftol=1e-4, max_nfev=budget)
     except _BudgetSpent:
         pass
@@ -112,17 +129,25 @@ def fit(prepared: Prepared, nominal: ModelParams, candidates: Sequence[Candidate
     params = obj.params(z)
     train = score(prepared, predict_all(params, prepared, "train"), "train")
     held = predict_all(params, prepared, "holdout")
-    return Fit(effects=tuple(c.effect for c in candidates), values=obj.values(z), params=params,
+    return Fit(groups=tuple(c.name for c in candidates), values=obj.values(z), z=z, params=params,
                train=train, holdout=score(prepared, held, "holdout"),
                holdout_windows=window_errors(prepared, held, "holdout"), evaluations=obj.calls,
                seconds=time.perf_counter() - began)
 
 
 def _grid_first_knob(obj: _Objective) -> np.ndarray:
+    """Start of a fit: every knob at its neutral point but the first knob of the first effect,
+    which is searched on a grid (and from each value a form-selecting knob lists in ``tries``).
+    Calibration knobs are not gridded: they start at 1."""
     base = np.concatenate([c.start() for c in obj.candidates])
     knobs = [k for c in obj.candidates for k in c.knobs]
+    offsets = np.cumsum([0] + obj.sizes)
+    first = next((int(o) for c, o in zip(obj.candidates, offsets) if c.name != CALIBRATION),
+                 None)
+    if first is None:
+        return base
     bases = [base]
-    for i, k in enumerate(knobs[1:], 1):
+    for i, k in enumerate(knobs[first + 1:], first + 1):
         for value in k.tries:
             b = base.copy()
             b[i] = k.to_unit(value)
@@ -131,7 +156,7 @@ def _grid_first_knob(obj: _Objective) -> np.ndarray:
     for b in bases:
         for g in np.linspace(0.0, 1.0, GRID):
             z = b.copy()
-            z[0] = g
+            z[first] = g
             c = obj.cost(z)
             if c < best_cost:
                 best, best_cost = z, c

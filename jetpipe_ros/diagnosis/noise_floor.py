@@ -30,7 +30,8 @@ def twin(prepared: Prepared, params: ModelParams, seed: int = SEED) -> Prepared:
             "integration.sample_time": prepared.dt,
             "mechanics.initial_position": float(np.clip(rec.smooth["y"][0], -0.5, 0.5)),
             "chamber.initial_pressure_1": float(np.clip(rec.smooth["p1"][0], 1e4, 1.2e6)),
-            "chamber.initial_pressure_2": float(np.clip(rec.smooth["p2"][0], 1e4, 1.2e6))})
+            "chamber.initial_pressure_2": float(np.clip(rec.smooth["p2"][0], 1e4, 1.2e6)),
+            "chamber.regulated": rec.regulated})
         tr = simulate(p, rec.u, rec.f_load)
         y = tr.y + prepared.noise["y"] * rng.standard_normal(tr.y.size)
         p1 = tr.p1 + prepared.noise["p1"] * rng.standard_normal(tr.y.size)

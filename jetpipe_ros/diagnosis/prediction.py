@@ -8,7 +8,8 @@ are held on the measurements (so the valve's own state is right at the restart).
 that set the state are smoothed (zero phase) first, so sensor noise does not enter the restarts,
 and pass back through the inverse of the model's own pressure-sensor model (bias, drift, lag) when
 the sensor_dynamics effect is on, so a restart does not hand the sensor's error to the state. Locked-piston
-experiments are stable and are predicted whole.
+experiments are stable and are predicted whole. Friction tests on the regulated rig are
+predicted as the mechanics alone: their pressures are the regulators'.
 
 The same kernel also replays one subsystem with its inputs held on the measurements: the valve
 and chambers driven by the measured motion (``mode="chambers"``), or the mechanics driven by the
@@ -71,6 +72,8 @@ def predict(params: ModelParams, rec: Record, dt: float, mode: str = "full",
     """Predict experiment ``rec`` with ``params`` (noise-free) at sample time ``dt``."""
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    if rec.regulated:
+        mode = "mechanics"
     y = rec.smooth["y"]
     p1, p2 = (_sensor_inverse(params, rec.smooth[s], rec.t) for s in ("p1", "p2"))
     changes = {"mechanics.locked": rec.locked, "sensors.noise": False,

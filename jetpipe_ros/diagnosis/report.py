@@ -1,6 +1,7 @@
 """The diagnosis report: one self-contained HTML page (figures inlined as PNG).
 
-Top to bottom: a plain-language summary; the ranking of candidates with their held-out gap;
+Top to bottom: a plain-language summary; the recalibrated parameters against nominal; the ranking
+of candidates with their held-out gap;
 model against data on the held-out experiment with the largest gap; the gap by regime; the
 frequency response of data, nominal and augmented models; then the numbers (signals,
 subsystems, the paper's metrics, what the experiments cannot show, how the data were split).
@@ -39,7 +40,8 @@ def _plt():
 
 
 def ranking_figure(result: dict) -> str:
-    """Held-out gap of the nominal model and of each candidate (bars), best first."""
+    """Held-out gap of each candidate on the recalibrated model (bars, best first) against the
+    nominal and the recalibrated model's."""
     plt = _plt()
     rows = result["ranking"]
     names = [r["effect"] for r in rows]
@@ -50,10 +52,40 @@ def ranking_figure(result: dict) -> str:
     ax.barh(names[::-1], gaps[::-1], color=colors[::-1])
     ax.axvline(result["gap"]["nominal"], color=COLORS["nominal"], ls="--",
                label=f"nominal {result['gap']['nominal']:.2f} %")
+    ax.axvline(result["gap"]["recalibrated"], color="#888888", ls=":",
+               label=f"recalibrated {result['gap']['recalibrated']:.2f} %")
     for i, r in enumerate(rows[::-1]):
         ax.text(r["holdout_gap"], i, f"  {100 * r['shrinkage']:.0f} %", va="center", fontsize=8)
-    ax.set_xlabel("held-out gap, excess NRMSE [%] (labels: shrinkage)")
+    ax.set_xlabel("held-out gap, excess NRMSE [%] (labels: shrinkage of what recalibration "
+                  "leaves)")
     ax.legend(loc="lower right")
+    return _figure_png(fig)
+
+
+def calibration_figure(result: dict) -> str:
+    """Each calibration knob's factor against nominal [%]: the final model's and the
+    recalibration's alone, with the search range."""
+    from jetpipe_ros.diagnosis.calibration import CALIBRATION
+
+    plt = _plt()
+    cal = result["calibration"]
+    knobs = [k.name for k in CALIBRATION.knobs]
+    y = np.arange(len(knobs))[::-1]
+    fig, ax = plt.subplots(figsize=(8, 0.32 * len(knobs) + 1.2))
+    for k, yi in zip(CALIBRATION.knobs, y):
+        ax.plot([100 * (k.low - 1), 100 * (k.high - 1)], [yi, yi], color="#dddddd", lw=6,
+                solid_capstyle="butt", zorder=0)
+    alone = [100 * (cal["recalibration_alone"][k] - 1) for k in knobs]
+    final = [100 * (cal["knobs"][k] - 1) for k in knobs]
+    ax.scatter(alone, y, marker="o", facecolors="none", edgecolors="#888888",
+               label="recalibration alone", zorder=2)
+    ax.scatter(final, y, marker="D", color=COLORS["augmented"] if cal["significant"]
+               else "#bbbbbb", label="in the augmented model" if cal["significant"]
+               else "with the effect (not significant)", zorder=3)
+    ax.axvline(0.0, color="#444444", lw=0.8)
+    ax.set_yticks(y, knobs, fontsize=8)
+    ax.set_xlabel("factor against nominal [%] (grey band: search range)")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     return _figure_png(fig)
 
 
@@ -143,32 +175,59 @@ def summary(result: dict) -> str:
     """The plain-language summary at the top of the report."""
     v = result["verdict"]
     g = result["gap"]
+    cal = result["calibration"]
     lines = []
+    off = ", ".join(cal["summary"]) or "all within 2 % of nominal"
     if v["effect"] == "none":
         lines.append(f"<b>No unmodelled effect identified.</b> {html.escape(v['reason'])}.")
     else:
         params = v["params"] if len(v["effects"]) == 1 else {
             f"{e}.{k}": x for e, d in v["params"].items() for k, x in d.items()}
         ptxt = ", ".join(f"{k} = {x:.4g}" for k, x in params.items())
-        lines.append(f"<b>The gap is best explained by <code>{html.escape(v['effect'])}</code>"
-                     f"</b> ({html.escape(v['subsystem'])}; {html.escape(ptxt)}), "
-                     f"confidence {v['confidence']:.2f}.")
-        lines.append(f"Modelling it shrinks the held-out gap from {g['nominal']:.2f} % to "
-                     f"{g['augmented']:.2f} % ({100 * g['shrinkage']:.0f} % smaller). "
-                     f"<code>augmented.yaml</code> runs the improved model.")
-        if v["ambiguous_with"]:
-            sep = v["separating_experiment"]
-            where = ("of this dataset; a longer run of it"
-                     if sep and sep["in_dataset"] else
-                     "of the default campaign (config/campaign.yaml), not in this dataset; "
-                     "recording it") if sep else ""
-            extra = (f" The experiment '{html.escape(sep['experiment'])}' {where} would "
-                     f"separate them best (their predictions differ by "
-                     f"{sep['difference_over_noise']:.1f} x the sensor noise)."
-                     if sep else "")
-            lines.append(f"But <code>{html.escape(v['ambiguous_with'])}</code> explains the "
-                         f"data almost as well: these experiments cannot tell the two apart."
-                         + extra)
+        if cal["significant"]:
+            lines.append(f"<b>The nominal parameters were off</b> ({html.escape(off)}), "
+                         f"<b>and on top of that <code>{html.escape(v['effect'])}</code></b> "
+                         f"({html.escape(v['subsystem'])}; {html.escape(ptxt)}) explains "
+                         f"what recalibration leaves, confidence {v['confidence']:.2f}.")
+        else:
+            lines.append(f"<b>The gap is best explained by <code>{html.escape(v['effect'])}"
+                         f"</code></b> ({html.escape(v['subsystem'])}; {html.escape(ptxt)}), "
+                         f"confidence {v['confidence']:.2f}; the nominal parameters need no "
+                         f"correction beyond noise.")
+        words = v["effect_reason"]
+        if cal["significant"] and cal["shrinkage_given_effect"] is not None:
+            words += (f"; recalibrating the nominal parameters as well removes "
+                      f"{100 * cal['shrinkage_given_effect']:.0f} % of what the effect alone "
+                      f"leaves")
+        lines.append(html.escape(words[0].upper() + words[1:]) + ".")
+    if cal["significant"] or v["effect"] != "none":
+        lines.append(f"Recalibration alone takes the held-out gap from {cal['gap_before']:.2f} "
+                     f"% to {cal['gap_after']:.2f} %; the augmented model (what "
+                     f"<code>augmented.yaml</code> runs) from {g['nominal']:.2f} % to "
+                     f"{g['augmented']:.2f} % ({100 * g['shrinkage']:.0f} % smaller).")
+    if cal["at_bound"]:
+        lines.append("Recalibration stopped at the bound of "
+                     + ", ".join(f"<code>{k}</code> ({cal['knobs'][k]:.2f} x nominal)"
+                                 for k in cal["at_bound"])
+                     + ": the truth may lie outside the range searched, or the knob stands in "
+                       "for something it does not model.")
+    if cal["traded_with_effect"]:
+        lines.append("With the effect in the model, recalibration moved "
+                     + ", ".join(f"<code>{k}</code> by {100 * (m - 1):+.0f} %"
+                                 for k, m in cal["traded_with_effect"].items())
+                     + ": these knobs and the effect partly stand in for each other in "
+                       "these experiments.")
+    sep = v["separating_experiment"]
+    alt = v["ambiguous_with"] or (v["alternative"] or {}).get("explanation")
+    if alt:
+        where = ("of this dataset; a longer run of it" if sep and sep["in_dataset"] else
+                 "of the default campaign (config/campaign.yaml), not in this dataset; "
+                 "recording it") if sep else ""
+        extra = (f" The experiment '{html.escape(sep['experiment'])}' {where} would "
+                 f"separate them best (their predictions differ by "
+                 f"{sep['difference_over_noise']:.1f} x the sensor noise)." if sep else "")
+        lines.append(f"But <code>{html.escape(alt)}</code> explains the data almost as well: "
+                     f"these experiments cannot tell the two apart." + extra)
     sig = result["localization"]["signals"]["nominal"]
     worst = max((k for k in sig if k != "gap"), key=lambda k: sig[k], default=None)
     if worst:
@@ -230,8 +289,12 @@ def render(result: dict, prepared: Prepared, preds: dict) -> str:
     rank_rows = [[r["effect"], r["subsystem"], r["train_gap"], r["holdout_gap"],
                   f"{100 * r['shrinkage']:.0f} %", r["t"], r["t_cross_check"],
                   "yes" if r["explains"] else "no",
+                  f"{100 * r['alone']['shrinkage']:.0f} %" if r["alone"] else None,
                   _params_text(r["params"])]
                  for r in result["ranking"]]
+    cal = result["calibration"]
+    cal_rows = [[k, ", ".join(cal["parameters"][k]), f"{x:.3f}",
+                 f"{cal['recalibration_alone'][k]:.3f}"] for k, x in cal["knobs"].items()]
     vis = result["visibility"]["at_typical_size"]
     vis_rows = [[e, x, "yes" if x >= result["visibility"]["threshold"] else "no"]
                 for e, x in vis.items()]
@@ -248,14 +311,22 @@ def render(result: dict, prepared: Prepared, preds: dict) -> str:
         f"<style>{style}</style></head><body>",
         "<h1>Sim-to-real gap diagnosis</h1>",
         f"<div class='summary'>{summary(result)}</div>",
+        "<h2>Calibration: nominal parameters that are off</h2>",
+        "<p>Lumped knobs recalibrated on the training experiments, each a factor on the "
+        "nominal parameters (1 = nominal). Significant when it removes a significant part of "
+        "the held-out gap, and, with an effect, of what the effect alone leaves.</p>",
+        calibration_figure(result),
+        _table(cal_rows, ["knob", "multiplies", "factor", "recalibration alone"]),
         "<h2>Which effect explains the gap</h2>",
-        "<p>Each candidate fitted on the training experiments, judged on the held-out ones. "
+        "<p>Each candidate fitted on the training experiments on top of the recalibrated model "
+        "(the best jointly with the calibration knobs), judged on the held-out ones against "
+        "the recalibrated model; 'alone' = fitted on the nominal model, judged against it. "
         "Gap = RMS prediction error beyond sensor noise, in % of each signal's spread, over "
         f"{loc['horizon_s']:g}-s prediction horizons.</p>",
         ranking_figure(result),
         _table(rank_rows, ["candidate", "subsystem", "train gap %", "held-out gap %",
                            "shrinkage", "paired t", "t cross-check", "explains",
-                           "fitted parameters"]),
+                           "shrinkage alone", "fitted parameters"]),
         "<h2>Model against data</h2>", overlay_figure(prepared, preds, result),
         "<h2>Where the gap lies</h2>", "<h3>By regime (held out)</h3>",
         regime_figure(result), "<h3>By frequency</h3>", frequency_figure(result),

@@ -1,12 +1,16 @@
-"""``jetpipe selfcheck``: the diagnosis judged on data whose effect is withheld.
+"""``jetpipe selfcheck``: the diagnosis judged on data whose effect and parameters are withheld.
 
 Each case switches on one effect (or two, or none) at a random realistic size, sometimes in a
 form the diagnosis has no candidate for (a multi-element hysteresis, an orifice leak, a
-heat-transfer thermal model), simulates a dataset with sensor noise, and runs the diagnosis on
-the dataset directory alone. The truth stays here: the diagnosis reads only what a user would
-give it. Then the verdicts are scored: top-1 accuracy (an effect too small to show in the
-experiments counts as correctly answered by ``none``), a confusion matrix, the recovery of the
-fitted parameters, and the held-out shrinkage.
+heat-transfer thermal model), and, unless switched off, moves the nominal parameters as an
+individual actuator and bench would (:func:`deviations`: drawn on the model's raw physical
+parameters, more of them than the diagnosis's calibration knobs and independently of how those
+knobs act). It simulates a dataset with sensor noise and runs the diagnosis on the dataset
+directory alone. The truth stays here: the diagnosis reads only what a user would give it. Then
+the verdicts are scored: top-1 accuracy (an effect too small to show in the experiments counts as
+correctly answered by ``none``; a parameters-only case must be answered ``none`` with the
+calibration significant), a confusion matrix, the recovery of the fitted parameters and of the
+calibration, and the held-out shrinkage.
 """
 
 from __future__ import annotations
@@ -23,8 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from jetpipe_ros.dataset import read_dataset
-from jetpipe_ros.diagnosis.diagnose import diagnose
+from jetpipe_ros.diagnosis.diagnose import VISIBLE, diagnose
 from jetpipe_ros.model import EFFECTS, ModelParams, simulate
+from jetpipe_ros.model.params import end_stop_volumes
 
 #: Realistic sizes (DESIGN.md s.3): name -> sampler of the effect's parameters.
 SIZES: dict[str, Callable[[np.random.Generator], dict]] = {
@@ -51,11 +56,63 @@ VARIANTS: dict[str, tuple[str, Callable[[np.random.Generator], dict]]] = {
                                                                      math.log(2.0)))}),
 }
 PAIRS = (("valve_lag", "leakage"), ("valve_hysteresis", "thermal"))
-#: The cycle of case kinds: none, every effect, every variant, the pairs.
+#: The cycle of case kinds: none, every effect, every variant, the pairs. With parameter
+#: deviations, "none" is a parameters-only case, and comes twice per cycle.
 KINDS = ("none", *EFFECTS, *VARIANTS, *("+".join(p) for p in PAIRS))
-#: A truth whose noise-free signature is below this fraction of the noise variance cannot be
-#: seen in the experiments; ``none`` is then a correct answer.
-VISIBLE = 0.02
+KINDS_DEVIATED = ("none", "none", *EFFECTS, *VARIANTS, *("+".join(p) for p in PAIRS))
+
+
+def deviations(rng: np.random.Generator, nominal: ModelParams) -> tuple[dict, dict]:
+    """Raw parameter changes of an individual actuator and bench, and the calibration knob
+    factors they amount to (for scoring).
+
+    Sizes (uniform): flow map per direction +-10 %, gas temperature +-2 % (it multiplies the flow
+    term of Eq. 11-12 too); jet-pipe gain +-5 %; torque-motor inertia, magnetic stiffness,
+    back-EMF constant and coil resistance each +-5 % (the resonance moves by about +-5 %);
+    the volume each chamber keeps at its end stop (ports, hoses, fittings) +-25 %, the piston
+    area +-0.5 % (the chambers' end-stop volumes kept); friction: a common factor on all forces
+    +-30 %, times +-10 % per phase and quantity (breakaway, Coulomb), the viscous planes their
+    own factor +-30 % times +-10 % per phase, the Stribeck velocity +-20 % per phase. Every plane
+    is scaled whole (its c0, c1, c2), so the forces keep their sign and pressure dependence.
+    """
+    u = lambda half: float(rng.uniform(1.0 - half, 1.0 + half))  # noqa: E731
+    g_c, g_d, temp, g_v = u(0.10), u(0.10), u(0.02), u(0.05)
+    inertia, stiffness = u(0.05), u(0.05)
+    d1, d2 = u(0.25), u(0.25)
+    area = nominal["chamber.piston_area"] * u(0.005)
+    swept = area * 0.5 * nominal["mechanics.stroke"]
+    stop1, stop2 = end_stop_volumes(nominal)
+    changes: dict = {
+        "flow.gain_charge": nominal["flow.gain_charge"] * g_c,
+        "flow.gain_discharge": nominal["flow.gain_discharge"] * g_d,
+        "chamber.temperature": nominal["chamber.temperature"] * temp,
+        "valve.gain": nominal["valve.gain"] * g_v,
+        "valve.rotor_inertia": nominal["valve.rotor_inertia"] * inertia,
+        "valve.magnetic_stiffness": nominal["valve.magnetic_stiffness"] * stiffness,
+        "valve.back_emf_constant": nominal["valve.back_emf_constant"] * u(0.05),
+        "valve.coil_resistance": nominal["valve.coil_resistance"] * u(0.05),
+        "chamber.piston_area": area,
+        "chamber.dead_volume_1": swept + d1 * stop1,
+        "chamber.dead_volume_2": swept + d2 * stop2,
+    }
+    static, viscous = u(0.30), u(0.30)
+    knobs = {"flow_gain_charge": g_c * temp, "flow_gain_discharge": g_d * temp,
+             "valve_gain": g_v, "valve_frequency": math.sqrt(stiffness / inertia),
+             "dead_volume_1": d1, "dead_volume_2": d2}
+    for phase in ("entry", "exit"):
+        statics = []
+        for qty, common in (("breakaway", static), ("coulomb", static), ("viscous", viscous)):
+            f = common * u(0.10)
+            if qty == "viscous":
+                knobs[f"viscous_{phase}"] = f
+            else:
+                statics.append(f)
+            changes[f"friction.{phase}.{qty}"] = [f * c for c in
+                                                   nominal[f"friction.{phase}.{qty}"]]
+        knobs[f"friction_{phase}"] = float(np.mean(statics))
+        changes[f"friction.{phase}.stribeck_velocity"] = [
+            u(0.20) * c for c in nominal[f"friction.{phase}.stribeck_velocity"]]
+    return changes, knobs
 
 
 @dataclass
@@ -66,10 +123,16 @@ class Case:
     kind: str
     effects: dict[str, dict]  #: effect -> parameters switched on
     seed: int
-    visible: bool = True
+    deviations: dict = field(default_factory=dict)  #: raw parameter changes (the bench)
+    knob_truth: dict = field(default_factory=dict)  #: the calibration factors they amount to
+    visible: bool = True  #: the effect shows in the data (else ``none`` is right too)
+    deviated: bool = False  #: the parameter deviations show in the data
     verdict: str = ""
     verdict_params: dict = field(default_factory=dict)
     confidence: float = 0.0
+    calibrated: bool = False  #: the diagnosis recalibrated (calibration significant)
+    knobs: dict = field(default_factory=dict)  #: the calibration factors it reported
+    recalibration_shrinkage: float = 0.0  #: held-out shrinkage of the recalibration alone
     shrinkage: float = 0.0
     gap_nominal: float = 0.0
     gap_augmented: float = 0.0
@@ -81,25 +144,40 @@ class Case:
         return "+".join(sorted(self.effects)) or "none"
 
     @property
+    def parameters_only(self) -> bool:
+        """No effect, only the parameter deviations."""
+        return not self.effects and bool(self.deviations)
+
+    @property
     def correct(self) -> bool:
-        """The verdict names the truth (or says none for an invisible truth)."""
+        """The verdict names the truth (or says none for an invisible truth); a parameters-only
+        case must also be recalibrated, unless its deviations do not show."""
         got = "+".join(sorted(self.verdict.split("+"))) if self.verdict != "none" else "none"
-        return got == self.truth or (not self.visible and got == "none")
+        named = got == self.truth or (not self.visible and got == "none")
+        if self.parameters_only and self.deviated:
+            return named and self.calibrated
+        return named
+
+    def bench_params(self) -> ModelParams:
+        """The nominal model moved by the deviations, without the effect."""
+        return ModelParams().with_values(self.deviations)
 
     def truth_params(self) -> ModelParams:
         """The model the data were simulated with."""
-        p = ModelParams()
+        p = self.bench_params()
         for effect, kw in self.effects.items():
             p = p.with_effect(effect, **kw)
         return p
 
 
-def make_cases(n: int, seed: int) -> list[Case]:
-    """``n`` cases cycling through :data:`KINDS`, sizes drawn with ``seed``."""
+def make_cases(n: int, seed: int, deviate: bool = True) -> list[Case]:
+    """``n`` cases cycling through :data:`KINDS_DEVIATED` (with parameter deviations) or
+    :data:`KINDS`, sizes drawn with ``seed``."""
     rng = np.random.default_rng(seed)
+    kinds = KINDS_DEVIATED if deviate else KINDS
     cases = []
     for i in range(n):
-        kind = KINDS[i % len(KINDS)]
+        kind = kinds[i % len(kinds)]
         if kind == "none":
             effects: dict[str, dict] = {}
         elif kind in VARIANTS:
@@ -107,13 +185,16 @@ def make_cases(n: int, seed: int) -> list[Case]:
             effects = {effect: sampler(rng)}
         else:
             effects = {e: SIZES[e](rng) for e in kind.split("+")}
-        cases.append(Case(i, kind, effects, int(rng.integers(1, 2**31 - 1))))
+        case_seed = int(rng.integers(1, 2**31 - 1))
+        changes, knobs = deviations(rng, ModelParams()) if deviate else ({}, {})
+        cases.append(Case(i, "parameters_only" if deviate and kind == "none" else kind,
+                          effects, case_seed, changes, knobs))
     return cases
 
 
-def signature(truth: ModelParams, dataset_dir: Path) -> float:
-    """Noise-free difference between the truth and the nominal model on the dataset's
-    commands, as a fraction of the sensor noise variance (signals averaged)."""
+def signature(a: ModelParams, b: ModelParams, dataset_dir: Path) -> float:
+    """Noise-free difference between models ``a`` and ``b`` on the dataset's commands, as a
+    fraction of the sensor noise variance (signals averaged)."""
     ds = read_dataset(dataset_dir)
     nominal = ModelParams()
     sigma = {"y": nominal["sensors.position_sigma"], "p1": nominal["sensors.pressure_sigma"],
@@ -121,19 +202,19 @@ def signature(truth: ModelParams, dataset_dir: Path) -> float:
     ratios = []
     for entry, exp in ds:
         changes = {"mechanics.locked": entry.locked, "sensors.noise": False}
-        a = simulate(truth.with_values(changes), exp.u)
-        b = simulate(nominal.with_values(changes), exp.u)
+        ta = simulate(a.with_values(changes), exp.u)
+        tb = simulate(b.with_values(changes), exp.u)
         for s in (("p1", "p2") if entry.locked else ("y", "p1", "p2")):
-            d = getattr(a, f"{s}_meas") - getattr(b, f"{s}_meas")  # as the sensors read them
+            d = getattr(ta, f"{s}_meas") - getattr(tb, f"{s}_meas")  # as the sensors read them
             ratios.append(float(np.mean(d ** 2)) / sigma[s] ** 2)
     return float(np.mean(ratios))
 
 
 def run_selfcheck(n: int, seed: int, make_dataset: Callable[[ModelParams, Path, int], None],
                   out_dir: Path | None = None, workers: int = 2,
-                  progress: Callable[[str], None] = print) -> dict:
+                  progress: Callable[[str], None] = print, deviate: bool = True) -> dict:
     """Run ``n`` cases; ``make_dataset(params, root, seed)`` writes a noisy dataset to root."""
-    cases = make_cases(n, seed)
+    cases = make_cases(n, seed, deviate)
     work = Path(tempfile.mkdtemp(prefix="jetpipe-selfcheck-"))
     began = time.perf_counter()
     try:
@@ -144,17 +225,27 @@ def run_selfcheck(n: int, seed: int, make_dataset: Callable[[ModelParams, Path, 
             make_dataset(truth.with_values({"sensors.noise": True,
                                             "sensors.seed": case.seed % 100000}), data,
                          case.seed)
-            case.visible = not case.effects or signature(truth, data) >= VISIBLE
-            result = diagnose(data, work / f"out{case.index:02d}", workers=workers, quiet=True)
+            bench = case.bench_params()
+            case.visible = not case.effects or signature(truth, bench, data) >= VISIBLE
+            case.deviated = bool(case.deviations) and \
+                signature(bench, ModelParams(), data) >= VISIBLE
+            # Each case's outputs are kept beside the summary, the truth with them.
+            out = (out_dir / "cases" if out_dir else work) / f"case{case.index:02d}"
+            result = diagnose(data, out, workers=workers, quiet=True)
+            (out / "truth.yaml").write_text(truth.to_ros_yaml(only_changed=True))
             v = result["verdict"]
             case.verdict, case.verdict_params = v["effect"], v["params"]
             case.confidence = v["confidence"]
+            cal = result["calibration"]
+            case.calibrated, case.knobs = cal["significant"], cal["knobs"]
+            case.recalibration_shrinkage = cal["shrinkage"]
             case.gap_nominal, case.gap_augmented = (result["gap"]["nominal"],
                                                     result["gap"]["augmented"])
             case.shrinkage = result["gap"]["shrinkage"]
             case.seconds = time.perf_counter() - t0
             progress(f"[{case.index + 1}/{n}] {case.kind:26s} truth {case.truth:28s} -> "
                      f"{case.verdict:28s} {'ok ' if case.correct else 'MISS'} "
+                     f"{'recalibrated ' if case.calibrated else ''}"
                      f"shrinkage {100 * case.shrinkage:4.0f} %  ({case.seconds:.0f} s)")
             shutil.rmtree(data, ignore_errors=True)
     finally:
@@ -168,7 +259,7 @@ def run_selfcheck(n: int, seed: int, make_dataset: Callable[[ModelParams, Path, 
 
 
 def summarise(cases: list[Case], seconds: float) -> dict:
-    """Accuracy, confusion matrix, parameter recovery and shrinkage of a set of cases."""
+    """Accuracy, confusion matrix, parameter and calibration recovery and shrinkage."""
     labels = sorted({c.truth for c in cases} | {c.verdict for c in cases})
     confusion = {t: {v: sum(1 for c in cases if c.truth == t and c.verdict == v)
                      for v in labels} for t in sorted({c.truth for c in cases})}
@@ -182,20 +273,47 @@ def summarise(cases: list[Case], seconds: float) -> dict:
                     recovery.append({"case": c.index, "effect": effect, "param": k,
                                      "truth": x, "fitted": got,
                                      "rel_error": abs(got - x) / abs(x)})
-    with_effect = [c for c in cases if c.effects and c.visible]
+    knobs = []  # calibration factors against the truth's, where the diagnosis recalibrated
+    for c in cases:
+        if c.calibrated and c.knob_truth:
+            for k, x in c.knob_truth.items():
+                got = c.knobs.get(k, 1.0)
+                knobs.append({"case": c.index, "knob": k, "truth": x, "fitted": got,
+                              "error": got - x,
+                              "named": abs(x - 1.0) < 0.05 or (got - 1.0) * (x - 1.0) > 0})
+    with_gap = [c for c in cases if (c.effects and c.visible) or c.deviated]
+    with_effect = [c for c in cases if c.effects]
+    params_only = [c for c in cases if c.parameters_only]
     return {
         "cases": len(cases), "seconds": seconds,
+        "deviations": any(c.deviations for c in cases),
         "top1_accuracy": float(np.mean([c.correct for c in cases])),
+        "effect_accuracy": float(np.mean([c.correct for c in with_effect]))
+        if with_effect else None,
         "none_correct": all(c.correct for c in cases if not c.effects),
         "variant_accuracy": float(np.mean([c.correct for c in cases if c.kind in VARIANTS]))
         if any(c.kind in VARIANTS for c in cases) else None,
-        "median_shrinkage": float(np.median([c.shrinkage for c in with_effect]))
-        if with_effect else None,
+        "parameters_only": {
+            "cases": len(params_only),
+            "accuracy": float(np.mean([c.correct for c in params_only])),
+            "median_recalibration_shrinkage": float(np.median(
+                [c.recalibration_shrinkage for c in params_only])),
+            "min_recalibration_shrinkage": float(min(
+                c.recalibration_shrinkage for c in params_only)),
+        } if params_only else None,
+        "median_shrinkage": float(np.median([c.shrinkage for c in with_gap]))
+        if with_gap else None,
         "median_param_rel_error": float(np.median([r["rel_error"] for r in recovery]))
         if recovery else None,
-        "confusion": confusion, "recovery": recovery,
+        "knobs_named": float(np.mean([k["named"] for k in knobs])) if knobs else None,
+        "median_knob_error": float(np.median([abs(k["error"]) for k in knobs]))
+        if knobs else None,
+        "confusion": confusion, "recovery": recovery, "knob_recovery": knobs,
         "results": [{"case": c.index, "kind": c.kind, "truth": c.truth, "effects": c.effects,
-                     "visible": c.visible, "verdict": c.verdict, "params": c.verdict_params,
+                     "deviations": c.knob_truth, "visible": c.visible, "deviated": c.deviated,
+                     "verdict": c.verdict, "params": c.verdict_params,
+                     "calibrated": c.calibrated, "knobs": c.knobs,
+                     "recalibration_shrinkage": c.recalibration_shrinkage,
                      "confidence": c.confidence, "correct": c.correct,
                      "gap_nominal": c.gap_nominal, "gap_augmented": c.gap_augmented,
                      "shrinkage": c.shrinkage, "seconds": c.seconds} for c in cases],
@@ -204,36 +322,60 @@ def summarise(cases: list[Case], seconds: float) -> dict:
 
 def render(summary: dict) -> str:
     """The self-check as Markdown: headline figures, confusion matrix, parameter recovery."""
-    lines = [f"# jetpipe selfcheck: {summary['cases']} cases in {summary['seconds']:.0f} s", "",
-             f"- top-1 accuracy: {100 * summary['top1_accuracy']:.0f} %",
-             f"- `none` answered correctly on every effect-free case: "
-             f"{'yes' if summary['none_correct'] else 'no'}"]
+    dev = "with" if summary["deviations"] else "without"
+    lines = [f"# jetpipe selfcheck: {summary['cases']} cases in {summary['seconds']:.0f} s, "
+             f"{dev} parameter deviations", "",
+             f"- top-1 accuracy: {100 * summary['top1_accuracy']:.0f} %"]
+    if summary["effect_accuracy"] is not None:
+        lines.append(f"- top-1 unmodelled effect (cases with an effect): "
+                     f"{100 * summary['effect_accuracy']:.0f} %")
+    lines.append(f"- `none` answered correctly on every effect-free case: "
+                 f"{'yes' if summary['none_correct'] else 'no'}")
+    po = summary["parameters_only"]
+    if po:
+        lines.append(f"- parameters-only cases ({po['cases']}): {100 * po['accuracy']:.0f} % "
+                     f"answered `none` with the calibration significant; recalibration removes "
+                     f"{100 * po['median_recalibration_shrinkage']:.0f} % of the held-out gap "
+                     f"(median; least {100 * po['min_recalibration_shrinkage']:.0f} %)")
     if summary["variant_accuracy"] is not None:
         lines.append(f"- accuracy on effects in a form no candidate has: "
                      f"{100 * summary['variant_accuracy']:.0f} %")
     if summary["median_shrinkage"] is not None:
-        lines.append(f"- median held-out shrinkage (visible effects): "
+        lines.append(f"- median held-out shrinkage (cases with a visible gap): "
                      f"{100 * summary['median_shrinkage']:.0f} %")
     if summary["median_param_rel_error"] is not None:
         lines.append(f"- median relative error of recovered parameters: "
                      f"{100 * summary['median_param_rel_error']:.1f} %")
+    if summary["knobs_named"] is not None:
+        lines.append(f"- calibration knobs off by >= 5 % named in the right direction: "
+                     f"{100 * summary['knobs_named']:.0f} %; median knob error "
+                     f"{summary['median_knob_error']:.3f}")
     conf = summary["confusion"]
     cols = sorted({v for row in conf.values() for v, n in row.items() if n})
     lines += ["", "## Confusion matrix (rows: truth, columns: verdict)", "",
               "| truth | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for t, row in conf.items():
         lines.append(f"| {t} | " + " | ".join(str(row.get(c, 0) or "") for c in cols) + " |")
-    lines += ["", "## Cases", "", "| # | kind | truth | verdict | ok | shrinkage | confidence |",
-              "|---|---|---|---|---|---|---|"]
+    lines += ["", "## Cases", "", "| # | kind | truth | verdict | recalibrated | ok | "
+              "shrinkage | recalibration alone | confidence |",
+              "|---|---|---|---|---|---|---|---|---|"]
     for r in summary["results"]:
         ok = "yes" if r["correct"] else "**no**"
         vis = "" if r["visible"] else " (too small to see)"
-        lines.append(f"| {r['case']} | {r['kind']}{vis} | {r['truth']} | {r['verdict']} | {ok} "
-                     f"| {100 * r['shrinkage']:.0f} % | {r['confidence']:.2f} |")
+        lines.append(f"| {r['case']} | {r['kind']}{vis} | {r['truth']} | {r['verdict']} | "
+                     f"{'yes' if r['calibrated'] else 'no'} | {ok} "
+                     f"| {100 * r['shrinkage']:.0f} % | "
+                     f"{100 * r['recalibration_shrinkage']:.0f} % | {r['confidence']:.2f} |")
     if summary["recovery"]:
         lines += ["", "## Parameter recovery", "", "| effect | parameter | truth | fitted | "
                   "error |", "|---|---|---|---|---|"]
         for r in summary["recovery"]:
             lines.append(f"| {r['effect']} | {r['param']} | {r['truth']:.4g} | "
                          f"{r['fitted']:.4g} | {100 * r['rel_error']:.1f} % |")
+    if summary["knob_recovery"]:
+        lines += ["", "## Calibration recovery (truth: the factor the raw deviations amount "
+                  "to)", "", "| case | knob | truth | fitted | named |", "|---|---|---|---|---|"]
+        for r in summary["knob_recovery"]:
+            lines.append(f"| {r['case']} | {r['knob']} | {r['truth']:.3f} | {r['fitted']:.3f} "
+                         f"| {'yes' if r['named'] else '**no**'} |")
     return "\n".join(lines) + "\n"

@@ -16,8 +16,10 @@ more of the gap than its better member, with significance, or the single effect 
 
 The answer is ``none`` when no candidate explains the gap: either the nominal gap is within
 noise, or its cause is not among the candidates. Two
-candidates are *indistinguishable* when the runner-up also explains the gap and leaves at most
-:data:`AMBIGUOUS` times the gap the winner leaves; then the answer
+candidates are *indistinguishable* when the runner-up also explains the gap and either leaves
+at most :data:`AMBIGUOUS` times the gap the winner leaves, or the winner's held-out advantage
+over it is not significant by the same test (paired t over the windows, or more than the noise
+floor); then the answer
 keeps the winner, lowers the confidence and names the experiment that separates them best.
 Confidence is the winner's shrinkage times its margin over the runner-up, ln(runner-up's gap /
 winner's gap) / ln(4) capped at 1 (full when the runner-up leaves four times the winner's gap),
@@ -33,6 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from jetpipe_ros.diagnosis.calibration import NAME as CALIBRATION
+from jetpipe_ros.diagnosis.calibration import describe
 from jetpipe_ros.diagnosis.fit import Fit
 from jetpipe_ros.diagnosis.prediction import HORIZON
 from jetpipe_ros.diagnosis.score import Score
@@ -50,10 +54,12 @@ NOISE_GAP = 0.5
 
 @dataclass
 class Ranked:
-    """A fit with its held-out figures relative to the nominal model."""
+    """A fit with its held-out figures relative to a base model (the nominal one, or the
+    recalibrated one for effects fitted on top of it)."""
 
     fit: Fit
-    shrinkage: float  #: 1 - gap_augmented / gap_nominal (held out)
+    base_gap: float  #: the base model's held-out gap [%]
+    shrinkage: float  #: 1 - gap_augmented / gap_base (held out)
     improvement: float  #: relative reduction of the held-out mean square error
     t: float  #: paired t statistic of the improvement over the prediction windows
     removed_over_floor: float  #: held-out error removed / the noise floor's error
@@ -120,8 +126,8 @@ def rank(fits: Sequence[Fit], nominal: Score, nominal_windows: np.ndarray,
         imp = 1.0 - f.holdout.total / nominal.total if nominal.total > 0 else 0.0
         bic = n * math.log(max(f.holdout.total, 1e-300)) + k * math.log(n)
         removed = (nominal.total - f.holdout.total) / max(nominal.noise_total, 1e-300)
-        out.append(Ranked(f, shrink, imp, paired_t(nominal_windows, f.holdout_windows), removed,
-                          bic))
+        out.append(Ranked(f, nominal.gap, shrink, imp,
+                          paired_t(nominal_windows, f.holdout_windows), removed, bic))
     return sorted(out, key=lambda r: r.bic)
 
 
@@ -166,7 +172,7 @@ def decide(ranking: Sequence[Ranked], nominal: Score) -> Verdict:
         return Verdict(None, _clip(1.0 - best_shrink),
                        f"a gap of {nominal.gap:.2f} % remains but no candidate removes "
                        f"{MIN_SHRINKAGE:.0%} of it on held-out data with significance (best "
-                       f"{max(r.shrinkage for r in ranking):.0%}): the cause is not among the "
+                       f"{max((r.shrinkage for r in ranking), default=0.0):.0%}): the cause is not among the "
                        f"candidates")
     win = explaining[0]
     rivals = [r for r in ranking if r is not win and not set(r.fit.effects) & set(win.fit.effects)
@@ -178,7 +184,11 @@ def decide(ranking: Sequence[Ranked], nominal: Score) -> Verdict:
         g_win = max(win.fit.holdout.gap, 1e-6)
         g_run = runner.fit.holdout.gap
         margin = min(1.0, max(0.0, math.log(max(g_run, g_win) / g_win) / math.log(4.0)))
-        ambiguous = runner.explains and g_run <= AMBIGUOUS * g_win
+        # Told apart only when the winner's held-out advantage is itself significant.
+        t_sep = paired_t(runner.fit.holdout_windows, win.fit.holdout_windows)
+        apart = (t_sep >= MIN_T or (runner.fit.holdout.total - win.fit.holdout.total)
+                 >= nominal.noise_total * 1.0)
+        ambiguous = runner.explains and (g_run <= AMBIGUOUS * g_win or not apart)
     confidence = _clip(win.shrinkage) * margin
     reason = (f"{win.fit.name} removes {win.shrinkage:.0%} of the held-out gap "
               f"({nominal.gap:.2f} % -> {win.fit.holdout.gap:.2f} %)")
@@ -190,3 +200,81 @@ def decide(ranking: Sequence[Ranked], nominal: Score) -> Verdict:
 
 def _clip(x: float) -> float:
     return float(min(max(x, 0.0), 1.0))
+
+
+@dataclass
+class Settled:
+    """What the data need: calibration, an effect, both or neither, and in plain words why."""
+
+    final: Fit | None  #: the fit of the final model (None: the nominal model)
+    calibrated: bool  #: the final model includes the recalibration
+    verdict: Verdict  #: the unmodelled-effect answer
+    reason: str
+    #: calibration given the effect: the effect with the calibration against the effect alone
+    given: Ranked | None = None
+    #: another explanation as good as the final one (an effect alone against the calibration)
+    alternative: Ranked | None = None
+
+
+def settle(calibration: Ranked, on_cal: Verdict, alone: Verdict, given: Ranked | None,
+           effect_alone: Ranked | None) -> Settled:
+    """Decide which of calibration and unmodelled effect the data need.
+
+    ``calibration`` is the recalibrated model against the nominal one; ``on_cal`` the effect
+    verdict on top of the recalibrated model; ``alone`` the effect verdict on the nominal model;
+    ``given`` the winner of ``on_cal`` against the same effect fitted without the calibration,
+    and ``effect_alone`` that fit against the nominal model. Each part must pay for itself given
+    the other:
+
+    - an effect that explains the gap left after recalibration is the answer; the calibration
+      stays in the model when it explains a significant part of what the effect alone leaves,
+      else the effect alone is kept (its mis-set parameters were not needed);
+    - with no such effect, a significant recalibration is the answer (no unmodelled effect);
+      if an effect alone explains the nominal gap too, the two are alternatives: the one with
+      the lower held-out information criterion is kept, the other reported;
+    - with neither, an effect that explains the nominal gap alone is the answer, else nothing.
+    """
+    cal_words = _knob_words(calibration.fit.values)
+    if on_cal.winner is not None and given is not None:
+        win = on_cal.winner
+        if given.explains or effect_alone is None or not effect_alone.explains:
+            reason = (f"the nominal parameters were off ({_knob_words(win.fit.values)}); on "
+                      f"top of the "
+                      f"recalibration, {on_cal.reason}; the recalibration removes "
+                      f"{given.shrinkage:.0%} of what {win.fit.name} alone leaves")
+            return Settled(win.fit, True, on_cal, reason, given)
+        verdict = Verdict(effect_alone, on_cal.confidence, on_cal.reason, on_cal.runner_up,
+                          on_cal.ambiguous)
+        reason = (f"{win.fit.name} explains the gap: alone it removes "
+                  f"{effect_alone.shrinkage:.0%} of the held-out gap; recalibrating the nominal "
+                  f"parameters as well is not significant (removes {given.shrinkage:.0%} of "
+                  f"what is left, t = {given.t:.1f})")
+        return Settled(effect_alone.fit, False, verdict, reason, given)
+    if calibration.explains:
+        reason = (f"no unmodelled effect: the nominal parameters are off ({cal_words}); "
+                  f"recalibrated, the held-out gap shrinks from {calibration.base_gap:.2f} % "
+                  f"to {calibration.fit.holdout.gap:.2f} %")
+        alt = alone.winner
+        if alt is not None and alt.bic < calibration.bic:
+            verdict = Verdict(alt, alone.confidence, alone.reason)
+            return Settled(alt.fit, False, verdict,
+                           f"{alone.reason}; recalibrating the nominal parameters instead "
+                           f"({cal_words}) explains the data almost as well (held-out gap "
+                           f"{calibration.fit.holdout.gap:.2f} % against "
+                           f"{alt.fit.holdout.gap:.2f} %): these experiments cannot tell "
+                           f"them apart", alternative=calibration)
+        if alt is not None and alt.fit.holdout.gap <= AMBIGUOUS * calibration.fit.holdout.gap:
+            reason += (f"; {alt.fit.name} alone explains the data almost as well (held-out "
+                       f"gap {alt.fit.holdout.gap:.2f} % against "
+                       f"{calibration.fit.holdout.gap:.2f} %): these experiments cannot tell "
+                       f"them apart")
+            return Settled(calibration.fit, True, on_cal, reason, alternative=alt)
+        return Settled(calibration.fit, True, on_cal, reason)
+    if alone.winner is not None:
+        return Settled(alone.winner.fit, False, alone, alone.reason)
+    return Settled(None, False, alone, alone.reason)
+
+
+def _knob_words(values: dict) -> str:
+    words = describe(values[CALIBRATION]) if CALIBRATION in values else []
+    return ", ".join(words) if words else "all within 2 % of nominal"

@@ -17,6 +17,7 @@ from typing import Any
 
 import yaml
 
+from jetpipe_ros.model.chamber import chamber_volumes
 from jetpipe_ros.model.errors import ParameterError
 
 NODE_NAME = "actuator_sim"
@@ -302,6 +303,7 @@ class ModelParams(Mapping[str, Any]):
             if spec is None:
                 raise ParameterError(_unknown_message(name, where))
             values[name] = check_value(spec, value, where)
+        _check_geometry(values, where)
         self._values = values
 
     def __getitem__(self, name: str) -> Any:
@@ -342,6 +344,28 @@ class ModelParams(Mapping[str, Any]):
         values = self.non_default() if only_changed else dict(self._values)
         tree = {node_name: {"ros__parameters": _unflatten(values)}}
         return yaml.safe_dump(tree, sort_keys=False, default_flow_style=None)
+
+
+def end_stop_volumes(values: Mapping[str, Any]) -> tuple[float, float]:
+    """Volumes [m^3] chambers 1 and 2 keep with the piston at their end stops (Eq. 13 at
+    y = -stroke/2 and +stroke/2): the ports, hoses and fittings no stroke sweeps."""
+    half = 0.5 * values["mechanics.stroke"]
+    args = (values["chamber.piston_area"], values["chamber.dead_volume_1"],
+            values["chamber.dead_volume_2"])
+    return chamber_volumes(-half, *args)[0], chamber_volumes(half, *args)[1]
+
+
+def _check_geometry(values: Mapping[str, Any], where: str) -> None:
+    """Each chamber keeps a volume at its end stop."""
+    for i, volume in enumerate(end_stop_volumes(values), 1):
+        if volume <= 0.0:
+            at = f"{where}: " if where else ""
+            raise ParameterError(
+                f"{at}parameter chamber.dead_volume_{i} = "
+                f"{values[f'chamber.dead_volume_{i}']:g} m^3 is not larger than the volume the "
+                f"piston sweeps from the centre to the end stop (chamber.piston_area * "
+                f"mechanics.stroke / 2 = {values['chamber.dead_volume_' + str(i)] - volume:g} "
+                f"m^3): chamber {i} would vanish")
 
 
 def _unknown_message(name: str, where: str) -> str:

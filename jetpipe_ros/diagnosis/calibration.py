@@ -1,0 +1,122 @@
+"""Calibration: the nominal parameters an individual actuator and bench differ by.
+
+Real hardware never has the paper's numbers exactly: every valve, seal, dead volume and bench
+differs by several to tens of per cent. The diagnosis recalibrates a small set of lumped knobs on
+the training data before it judges any unmodelled effect, and reports them apart, so that a gap
+recalibration closes is not blamed on an effect and an effect masked by mis-set parameters is
+still found. Each knob is a factor on the nominal model (the ``--params`` file, else DESIGN.md
+s.2), so 1 means "as nominal":
+
+| knob | multiplies | what differs on real hardware |
+|---|---|---|
+| ``flow_gain_charge`` | ``flow.gain_charge``: Eq. 8 where it fills a chamber | receiver geometry, supply regulator |
+| ``flow_gain_discharge`` | ``flow.gain_discharge``: Eq. 8 where it empties one | exhaust path |
+| ``valve_gain`` | ``valve.gain``: jet-pipe deflection per volt | torque motor, Eq. 5's slope |
+| ``valve_frequency`` | the torque motor's natural frequency (rotor inertia / factor^2) | inertia, magnetic stiffness |
+| ``dead_volume_1``, ``_2`` | the volume each chamber keeps at its end stop (Eq. 13) | ports, hoses, fittings |
+| ``friction_entry``, ``_exit`` | breakaway and Coulomb planes of one phase (Eq. 20-27) | seal preload, wear, lubrication |
+| ``viscous_entry``, ``_exit`` | the viscous plane of one phase | seal material, temperature |
+
+Ranges are wide enough for the truth to lie inside (about a factor 1.6-2.5 each way); a knob that
+ends at its bound is reported as such. Knobs are searched on a log scale: a factor of 0.8 is as
+far from nominal as 1.25.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from jetpipe_ros.diagnosis.candidates import Knob, KnobGroup
+from jetpipe_ros.model import ModelParams
+from jetpipe_ros.model.params import end_stop_volumes
+
+NAME = "calibration"
+
+#: Plain-words description of each knob (what a factor above 1 means) and the parameters it
+#: multiplies.
+DESCRIPTIONS = {
+    "flow_gain_charge": ("flow map when charging", ("flow.gain_charge",)),
+    "flow_gain_discharge": ("flow map when discharging", ("flow.gain_discharge",)),
+    "valve_gain": ("valve gain (jet-pipe deflection per volt)", ("valve.gain",)),
+    "valve_frequency": ("valve natural frequency", ("valve.rotor_inertia",)),
+    "dead_volume_1": ("chamber 1 dead volume (at its end stop)", ("chamber.dead_volume_1",)),
+    "dead_volume_2": ("chamber 2 dead volume (at its end stop)", ("chamber.dead_volume_2",)),
+    **{f"friction_{ph}": (f"{ph}-phase breakaway and Coulomb friction",
+                          (f"friction.{ph}.breakaway", f"friction.{ph}.coulomb"))
+       for ph in ("entry", "exit")},
+    **{f"viscous_{ph}": (f"{ph}-phase viscous friction", (f"friction.{ph}.viscous",))
+       for ph in ("entry", "exit")},
+}
+
+
+@dataclass(frozen=True)
+class Calibration(KnobGroup):
+    """The calibration knobs as one group the fitter handles like a candidate's knobs."""
+
+    def apply(self, params: ModelParams, values: dict[str, float]) -> ModelParams:
+        """``params`` with each nominal parameter multiplied by its knob's factor."""
+        changes: dict = {}
+        dead = end_stop_volumes(params)
+        for knob, factor in values.items():
+            if knob == "valve_frequency":
+                # Natural frequency ~ sqrt(K_s / J): scaling J by 1/f^2 scales it by f.
+                changes["valve.rotor_inertia"] = params["valve.rotor_inertia"] / factor ** 2
+                continue
+            if knob.startswith("dead_volume"):
+                # The volume no stroke sweeps scales; the swept part is the bore's.
+                i = int(knob[-1])
+                changes[f"chamber.dead_volume_{i}"] = (params[f"chamber.dead_volume_{i}"]
+                                                       + (factor - 1.0) * dead[i - 1])
+                continue
+            for name in DESCRIPTIONS[knob][1]:
+                value = params[name]
+                changes[name] = ([factor * c for c in value] if isinstance(value, list)
+                                 else factor * value)
+        return params.with_values(changes)
+
+
+def _factor(name: str, low: float, high: float) -> Knob:
+    return Knob(name, low, high, 1.0, log=True)
+
+
+CALIBRATION = Calibration(NAME, (
+    _factor("flow_gain_charge", 0.6, 1.6),
+    _factor("flow_gain_discharge", 0.6, 1.6),
+    _factor("valve_gain", 0.8, 1.25),
+    _factor("valve_frequency", 0.8, 1.25),
+    _factor("dead_volume_1", 0.5, 2.0),
+    _factor("dead_volume_2", 0.5, 2.0),
+    _factor("friction_entry", 0.4, 2.5),
+    _factor("friction_exit", 0.4, 2.5),
+    _factor("viscous_entry", 0.4, 2.5),
+    _factor("viscous_exit", 0.4, 2.5),
+))
+
+
+def at_bound(values: dict[str, float], tolerance: float = 0.01) -> list[str]:
+    """Knobs whose fitted factor lies within ``tolerance`` (in log range) of a bound."""
+    out = []
+    for k in CALIBRATION.knobs:
+        z = k.to_unit(values[k.name])
+        if z <= tolerance or z >= 1.0 - tolerance:
+            out.append(k.name)
+    return out
+
+
+def describe(values: dict[str, float], least: float = 0.02) -> list[str]:
+    """Plain words for the knobs that differ from nominal by at least ``least``: e.g. "flow
+    map when charging 9% weaker"."""
+    words = []
+    for k in CALIBRATION.knobs:
+        f = values.get(k.name, 1.0)
+        if abs(f - 1.0) < least:
+            continue
+        if k.name.startswith("dead_volume"):
+            sense = "larger" if f > 1.0 else "smaller"
+        elif k.name.startswith(("valve", "friction", "viscous")):
+            sense = "higher" if f > 1.0 else "lower"
+        else:
+            sense = "stronger" if f > 1.0 else "weaker"
+        words.append(f"{DESCRIPTIONS[k.name][0]} {abs(f - 1.0):.0%} {sense}")
+    return words
+

@@ -1,0 +1,112 @@
+"""Calibration knobs: what each one changes in the model, checked against independent numbers,
+and their recovery from data whose nominal parameters are off (no unmodelled effect)."""
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from jetpipe_ros.diagnosis.calibration import CALIBRATION, at_bound, describe
+from jetpipe_ros.diagnosis.data import prepare
+from jetpipe_ros.diagnosis.fit import fit
+from jetpipe_ros.diagnosis.noise_floor import calibrate
+from jetpipe_ros.dataset import read_dataset
+from jetpipe_ros.model import ModelParams, ParameterError
+from jetpipe_ros.model.params import end_stop_volumes
+from jetpipe_ros.model.valve import valve_tf
+from test_diagnosis import make_dataset
+
+NOMINAL = ModelParams()
+
+
+def _peak_hz(params):
+    num, den = valve_tf(params)
+    w = 2 * np.pi * np.linspace(5.0, 200.0, 40000)
+    _, h = signal.freqs(num, den, w)
+    return w[np.argmax(np.abs(h))] / (2 * np.pi)
+
+
+def test_neutral_knobs_change_nothing():
+    p = CALIBRATION.apply(NOMINAL, CALIBRATION.values(CALIBRATION.start()))
+    assert {k: v for k, v in p.items() if v != NOMINAL[k]} == {}
+
+
+def test_each_knob_moves_its_own_physics():
+    p = CALIBRATION.apply(NOMINAL, {"flow_gain_charge": 0.9, "flow_gain_discharge": 1.2,
+                                    "valve_gain": 1.05, "friction_entry": 1.3,
+                                    "viscous_exit": 0.8})
+    assert p["flow.gain_charge"] == pytest.approx(0.9)
+    assert p["flow.gain_discharge"] == pytest.approx(1.2)
+    assert p["valve.gain"] == pytest.approx(1.05)
+    for q in ("breakaway", "coulomb"):
+        assert p[f"friction.entry.{q}"] == pytest.approx([1.3 * c for c in
+                                                          NOMINAL[f"friction.entry.{q}"]])
+        assert p[f"friction.exit.{q}"] == NOMINAL[f"friction.exit.{q}"]
+    assert p["friction.exit.viscous"] == pytest.approx([0.8 * c for c in
+                                                        NOMINAL["friction.exit.viscous"]])
+    assert p["friction.entry.viscous"] == NOMINAL["friction.entry.viscous"]
+    assert p["friction.entry.stribeck_velocity"] == NOMINAL["friction.entry.stribeck_velocity"]
+
+
+def test_valve_frequency_scales_the_resonance():
+    # The nominal chain peaks at 49.7 Hz (DESIGN.md s.2); a factor f moves the torque motor's
+    # natural frequency by f, and with it the peak (the lead-lag shifts it by a little).
+    for f in (0.9, 1.1):
+        p = CALIBRATION.apply(NOMINAL, {"valve_frequency": f})
+        assert _peak_hz(p) / _peak_hz(NOMINAL) == pytest.approx(f, rel=0.03)
+
+
+def test_dead_volume_knob_scales_the_volume_left_at_the_end_stop():
+    # Eq. 13: V1 = S y + V01; at y = -stroke/2 chamber 1 keeps V01 - S stroke/2 = 17.5 cm^3.
+    s = NOMINAL["chamber.piston_area"]
+    assert end_stop_volumes(NOMINAL) == pytest.approx((1.533e-4 - s * 0.025,
+                                                      1.915e-4 - s * 0.025))
+    p = CALIBRATION.apply(NOMINAL, {"dead_volume_1": 0.5, "dead_volume_2": 2.0})
+    stop1, stop2 = end_stop_volumes(p)
+    assert stop1 == pytest.approx(0.5 * (1.533e-4 - s * 0.025))
+    assert stop2 == pytest.approx(2.0 * (1.915e-4 - s * 0.025))
+    # At its lowest factor the chamber still keeps a volume (the model refuses none).
+    low = CALIBRATION.apply(NOMINAL, {"dead_volume_1": CALIBRATION.knobs[4].low})
+    assert end_stop_volumes(low)[0] > 0
+
+
+def test_a_chamber_that_would_vanish_is_refused():
+    with pytest.raises(ParameterError, match="chamber.dead_volume_1 .* would vanish"):
+        ModelParams({"chamber.dead_volume_1": 1.2e-4})
+
+
+def test_words_and_bounds():
+    values = {"flow_gain_charge": 0.91, "friction_exit": 1.28, "dead_volume_2": 1.01,
+              "valve_gain": 1.25}
+    words = describe(values)
+    assert "flow map when charging 9% weaker" in words
+    assert "exit-phase breakaway and Coulomb friction 28% higher" in words
+    assert not any("chamber 2" in w for w in words)  # 1 %: below the 2 % reported
+    full = {k.name: 1.0 for k in CALIBRATION.knobs} | values
+    assert at_bound(full) == ["valve_gain"]
+
+
+@pytest.fixture(scope="module")
+def off_bench(tmp_path_factory):
+    """The small campaign on a bench whose flow map is 10 % weaker (both directions) and whose
+    friction forces are 30 % higher than nominal, set on the raw parameters."""
+    root = tmp_path_factory.mktemp("off")
+    changes = {"flow.gain_charge": 0.9, "flow.gain_discharge": 0.9}
+    for ph in ("entry", "exit"):
+        for q in ("breakaway", "coulomb", "viscous"):
+            changes[f"friction.{ph}.{q}"] = [1.3 * c for c in NOMINAL[f"friction.{ph}.{q}"]]
+    make_dataset(root / "data", NOMINAL.with_values(changes), seed=4)
+    return root
+
+
+def test_recalibration_recovers_the_factors_from_a_neutral_start(off_bench):
+    prepared = prepare(read_dataset(off_bench / "data"))
+    prepared.floor = calibrate(prepared, NOMINAL)
+    f = fit(prepared, NOMINAL, [CALIBRATION], CALIBRATION.start(), budget=150)
+    got = f.values["calibration"]
+    assert got["flow_gain_charge"] == pytest.approx(0.9, abs=0.01)
+    assert got["flow_gain_discharge"] == pytest.approx(0.9, abs=0.01)
+    for k in ("friction_entry", "friction_exit", "viscous_entry", "viscous_exit"):
+        assert got[k] == pytest.approx(1.3, abs=0.06), k
+    for k in ("valve_gain", "valve_frequency"):
+        assert got[k] == pytest.approx(1.0, abs=0.02), k
+    assert f.holdout.gap < 0.1
