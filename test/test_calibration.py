@@ -100,7 +100,7 @@ def off_bench(tmp_path_factory):
 
 def test_recalibration_recovers_the_factors_from_a_neutral_start(off_bench):
     prepared = prepare(read_dataset(off_bench / "data"))
-    prepared.floor = calibrate(prepared, NOMINAL)
+    prepared.floor, prepared.floor_windows = calibrate(prepared, NOMINAL)
     f = fit(prepared, NOMINAL, [CALIBRATION], CALIBRATION.start(), budget=150)
     got = f.values["calibration"]
     assert got["flow_gain_charge"] == pytest.approx(0.9, abs=0.01)

@@ -173,3 +173,37 @@ def test_too_little_data_is_refused(tmp_path):
     write_dataset(tmp_path / "d", [(Entry("a.csv"), cols), (Entry("b.csv"), cols)])
     with pytest.raises(DatasetError, match="s of train data; the diagnosis needs at least"):
         prepare(read_dataset(tmp_path / "d"))
+
+
+IDENT_SUBSET = ("charge_0p57V", "charge_1p73V", "charge_2p86V", "valve_sweep_1V",
+                "friction_1_9p92bar", "friction_4p15_9p92bar", "friction_1_6p93bar",
+                "friction_4p96_1bar", "friction_8p98_1bar", "friction_10p115_8p89bar",
+                "square_0p6V_0p1122Hz")
+
+
+def test_identify_then_diagnose_with_the_identified_parameters(tmp_path, capsys):
+    """The user's path on a bench that is off: `jetpipe identify` on the identification
+    experiments, then `jetpipe diagnose --params` with what it identified."""
+    from pathlib import Path
+
+    from jetpipe_ros.campaign import load_campaign, run_campaign_offline
+
+    config = Path(__file__).parents[1] / "config" / "campaign_identification.yaml"
+    plan = load_campaign(config).select(IDENT_SUBSET)
+    truth = off_params(flow=0.92, friction=1.25).with_effect("valve_lag",
+                                                             corner_frequency=30.0)
+    data = run_campaign_offline(truth.with_values({"sensors.noise": True}), plan,
+                                tmp_path / "data", seed=11)
+    params = tmp_path / "identified.yaml"
+    assert main(["identify", str(data), "--out", str(params)]) == 0
+    out = tmp_path / "out"
+    assert main(["diagnose", str(data), "--out", str(out), "--params", str(params),
+                 "--quiet"]) == 0
+    result = json.loads((out / "diagnosis.json").read_text())
+    # The paper's procedures take up the bench's flow map and friction, and the valve sweep the
+    # lag (in the lead-lag of Eq. 9): what is left is within noise.
+    assert result["gap"]["nominal"] < 0.5
+    assert result["verdict"]["effect"] == "none"
+    aug = load_params(out / "augmented.yaml")
+    assert aug["valve.lag_pole"] == pytest.approx(load_params(params)["valve.lag_pole"])
+    assert "verdict: none" in capsys.readouterr().out

@@ -49,7 +49,7 @@ def test_clear_winner_is_named_with_high_confidence(rng):
     fits = [fit("valve_lag", 0.2, windows(FLOOR + 1e-5, rng)),
             fit("valve_delay", 1.2, windows(FLOOR + 1.5e-4, rng)),
             fit("thermal", 2.0, nom)]
-    v = decide(rank(fits, score(2.0), nom, 1e-3), score(2.0))
+    v = decide(rank(fits, score(2.0), nom, 1e-3), score(2.0), nom, None)
     assert v.winner.fit.name == "valve_lag" and not v.ambiguous
     assert v.confidence > 0.85
 
@@ -58,7 +58,7 @@ def test_two_equal_explanations_are_ambiguous(rng):
     nom = windows(FLOOR + 4e-4, rng)
     fits = [fit("valve_lag", 0.50, windows(FLOOR + 2e-5, rng)),
             fit("valve_delay", 0.55, windows(FLOOR + 2.2e-5, rng))]
-    v = decide(rank(fits, score(2.0), nom, 1e-3), score(2.0))
+    v = decide(rank(fits, score(2.0), nom, 1e-3), score(2.0), nom, None)
     assert v.ambiguous and v.runner_up.fit.name == "valve_delay"
     assert v.confidence < 0.2
 
@@ -66,14 +66,14 @@ def test_two_equal_explanations_are_ambiguous(rng):
 def test_noise_level_gap_with_no_significant_fit_is_none(rng):
     nom = windows(FLOOR, rng, jitter=3e-5)
     fits = [fit("valve_lag", 0.05, nom + 2e-5 * rng.standard_normal(20))]
-    v = decide(rank(fits, score(0.1), nom, 1e-3), score(0.1))
+    v = decide(rank(fits, score(0.1), nom, 1e-3), score(0.1), nom, None)
     assert v.winner is None and "within what sensor noise explains" in v.reason
 
 
 def test_unexplained_gap_is_none_naming_the_reason(rng):
     nom = windows(FLOOR + 4e-4, rng)
     fits = [fit("leakage", 1.8, windows(FLOOR + 3.2e-4, rng))]  # 10 % of the gap: too little
-    v = decide(rank(fits, score(2.0), nom, 1e-3), score(2.0))
+    v = decide(rank(fits, score(2.0), nom, 1e-3), score(2.0), nom, None)
     assert v.winner is None and "not among the candidates" in v.reason
 
 
@@ -81,10 +81,10 @@ def test_a_pair_must_remove_clearly_more_than_its_better_member(rng):
     nom = windows(FLOOR + 4e-4, rng)
     single = fit("thermal", 0.80, windows(FLOOR + 6.4e-5, rng))
     pair = fit("thermal+leakage", 0.75, windows(FLOOR + 5.6e-5, rng))
-    v = decide(rank([single, pair], score(2.0), nom, 1e-3), score(2.0))
+    v = decide(rank([single, pair], score(2.0), nom, 1e-3), score(2.0), nom, None)
     assert v.winner.fit.name == "thermal"
     better_pair = fit("thermal+leakage", 0.1, windows(FLOOR + 1e-6, rng))
-    v = decide(rank([single, better_pair], score(2.0), nom, 1e-3), score(2.0))
+    v = decide(rank([single, better_pair], score(2.0), nom, 1e-3), score(2.0), nom, None)
     assert v.winner.fit.name == "thermal+leakage"
 
 
@@ -97,12 +97,12 @@ def test_a_short_holdout_is_backed_by_the_cross_check(rng):
     ranking = rank(fits, score(0.1), nom, 1e-3)
     (r,) = ranking
     assert 0 < r.t < 3 and r.needs_cross_check and not r.explains
-    assert decide(ranking, score(0.1)).winner is None
+    assert decide(ranking, score(0.1), nom, None).winner is None
     r.t_cross = 1.0  # the other fold does not confirm it: (t + 1) / sqrt(2) < 3
     assert not r.explains and not r.needs_cross_check
     r.t_cross = 4.0  # confirmed out of sample in the other fold
     assert r.explains
-    assert decide(ranking, score(0.1)).winner.fit.name == "friction_dynamics"
+    assert decide(ranking, score(0.1), nom, None).winner.fit.name == "friction_dynamics"
 
 
 def _settle(rng, cal_gap, on_cal_gap, alone_gap, effect="valve_lag"):
@@ -113,9 +113,10 @@ def _settle(rng, cal_gap, on_cal_gap, alone_gap, effect="valve_lag"):
     cal = fit("calibration", cal_gap, windows(level(cal_gap), rng))
     (cal_row,) = rank([cal], score(2.0), nom, 1e-3)
     w = fit(f"calibration+{effect}", on_cal_gap, windows(level(on_cal_gap), rng))
-    on_cal = decide(rank([w], cal.holdout, cal.holdout_windows, 1e-3), cal.holdout)
+    on_cal = decide(rank([w], cal.holdout, cal.holdout_windows, 1e-3), cal.holdout,
+                    cal.holdout_windows, None)
     b = fit(effect, alone_gap, windows(level(alone_gap), rng))
-    alone = decide(rank([b], score(2.0), nom, 1e-3), score(2.0))
+    alone = decide(rank([b], score(2.0), nom, 1e-3), score(2.0), nom, None)
     given = effect_alone = None
     if on_cal.winner is not None:
         (given,) = rank([w], b.holdout, b.holdout_windows, 1e-3)
@@ -155,3 +156,28 @@ def test_an_effect_that_mimics_a_calibration_is_reported_as_the_alternative(rng)
 def test_nothing_to_explain_gives_the_nominal_model(rng):
     s = _settle(rng, cal_gap=1.95, on_cal_gap=1.95, alone_gap=1.95)
     assert s.final is None and not s.calibrated and s.verdict.winner is None
+
+
+def test_a_candidate_explaining_a_minority_of_a_gap_beyond_noise_is_not_the_cause(rng):
+    nom = windows(FLOOR + 4e-4, rng)
+    part = fit("supply_pressure", 1.2, windows(FLOOR + 1.44e-4, rng))  # 40 % of the gap
+    v = decide(rank([part], score(2.0), nom, 1e-3), score(2.0), nom, None)
+    assert v.winner is None and v.unexplained and v.partial.fit.name == "supply_pressure"
+    assert "explains only" in v.reason and "not among the candidates" in v.reason
+    cal = fit("calibration", 2.0, nom)
+    (cal_row,) = rank([cal], score(2.0), nom, 1e-3)
+    s = settle(cal_row, v, v, None, None)
+    assert s.unlisted and s.final is None
+
+
+def test_a_second_effect_is_named_when_it_pays_on_held_out_data(rng):
+    nom = windows(FLOOR + 4e-4, rng)
+    single = fit("valve_lag", 1.0, windows(FLOOR + 1e-4, rng))
+    # The second effect removes 60 % of what the first leaves: a small share of the whole gap.
+    pair = fit("valve_lag+leakage", 0.4, windows(FLOOR + 1.6e-5, rng))
+    v = decide(rank([single, pair], score(2.0), nom, 1e-3), score(2.0), nom, None)
+    assert v.winner.fit.name == "valve_lag+leakage"
+    # Noise-level differences do not make a pair.
+    noise_pair = fit("valve_lag+leakage", 0.99, windows(FLOOR + 1e-4, rng))
+    v = decide(rank([single, noise_pair], score(2.0), nom, 1e-3), score(2.0), nom, None)
+    assert v.winner.fit.name == "valve_lag"

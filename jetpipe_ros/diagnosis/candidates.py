@@ -4,10 +4,14 @@ could show the effect at all.
 
 Ranges are wider than the typical sizes of DESIGN.md s.3 so a real effect is not clipped, and each
 contains the value at which the effect vanishes (zero delay, hysteresis, leak, bias; n = 1; the
-nominal supply and mass; a corner or bristle stiffness high enough to be invisible), so a fit to
-data without the effect can land on "no effect". Where the form of an effect is uncertain, a knob
-spans the forms: the hysteresis is eight play operators whose thresholds spread from one sharp
-loop (spread 0) to a rounded Prandtl-Ishlinskii loop (spread 1).
+nominal supply and mass; a corner, wall heat conductance or bristle stiffness high enough to be
+invisible), so a fit to data without the effect can land on "no effect". The forms the physics
+admits are candidates of their own, judged on held-out data like the effects: the thermal
+effect as a polytropic index or as gas temperatures exchanging heat with the walls; leaks as
+laminar conductances or compressible (choked) orifices, each across the piston and to
+atmosphere. Where forms blend continuously a knob spans them: the hysteresis is eight play
+operators whose thresholds spread from one sharp loop (spread 0) to a rounded
+Prandtl-Ishlinskii loop (spread 1).
 """
 
 from __future__ import annotations
@@ -74,7 +78,8 @@ class KnobGroup:
 
 @dataclass(frozen=True)
 class Candidate(KnobGroup):
-    """An effect as a candidate cause: fitted knobs, fixed settings, a typical size."""
+    """An effect in one form as a candidate cause: fitted knobs, fixed settings (the form), a
+    typical size. ``name`` is ``effect`` or ``effect:form`` for an effect with several forms."""
 
     typical: dict[str, float] = field(default_factory=dict)
     fixed: dict[str, Any] = field(default_factory=dict)
@@ -82,14 +87,24 @@ class Candidate(KnobGroup):
     @property
     def effect(self) -> str:
         """The effect's name (DESIGN.md s.3)."""
-        return self.name
+        return effect_of(self.name)
+
+    @property
+    def form(self) -> str | None:
+        """The form, for an effect with several."""
+        return self.fixed.get("form")
 
     def apply(self, params: ModelParams, values: dict[str, float]) -> ModelParams:
         """``params`` with this effect switched on at ``values``."""
         return params.with_effect(self.effect, **self.fixed, **values)
 
 
-CANDIDATES: dict[str, Candidate] = {c.effect: c for c in (
+def effect_of(name: str) -> str:
+    """The effect (DESIGN.md s.3) of a candidate name (``effect`` or ``effect:form``)."""
+    return name.split(":", 1)[0]
+
+
+CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     Candidate("valve_delay", (Knob("delay", 0.0, 0.008, 0.0),), {"delay": 0.003}),
     Candidate("valve_lag", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),),
               {"corner_frequency": 30.0}),
@@ -97,12 +112,17 @@ CANDIDATES: dict[str, Candidate] = {c.effect: c for c in (
                                    Knob("spread", 0.0, 1.0, 0.0, tries=(1.0,))),
               {"half_width": 0.25, "spread": 0.0}, {"elements": 8}),
     Candidate("supply_pressure", (Knob("pressure", 4e5, 1.1e6, 1e6),), {"pressure": 8e5}),
-    Candidate("thermal", (Knob("polytropic_index", 1.0, 1.4, 1.0),), {"polytropic_index": 1.2},
-              {"form": "polytropic"}),
-    Candidate("leakage", (Knob("cross_coefficient", 0.0, 3e-9, 0.0),
-                          Knob("atmosphere_coefficient", 0.0, 3e-9, 0.0)),
-              {"cross_coefficient": 3e-10, "atmosphere_coefficient": 0.0},
-              {"form": "laminar"}),
+    Candidate("thermal:polytropic", (Knob("polytropic_index", 1.0, 1.4, 1.0),),
+              {"polytropic_index": 1.2}, {"form": "polytropic"}),
+    Candidate("thermal:heat_transfer", (Knob("heat_transfer", 0.05, 100.0, 100.0, log=True),),
+              {"heat_transfer": 0.5}, {"form": "heat_transfer"}),
+    Candidate("leakage:laminar", (Knob("cross_coefficient", 0.0, 3e-9, 0.0),
+                                  Knob("atmosphere_coefficient", 0.0, 3e-9, 0.0,
+                                       tries=(5e-10,))),
+              {"cross_coefficient": 3e-10, "atmosphere_coefficient": 0.0}, {"form": "laminar"}),
+    Candidate("leakage:orifice", (Knob("cross_area", 0.0, 4e-7, 0.0),
+                                  Knob("atmosphere_area", 0.0, 4e-7, 0.0, tries=(5e-8,))),
+              {"cross_area": 1e-7, "atmosphere_area": 0.0}, {"form": "orifice"}),
     Candidate("friction_dynamics", (Knob("bristle_stiffness", 1e3, 1e7, 1e7, log=True),
                                     Knob("bristle_damping", 0.0, 3e3, 0.0)),
               {"bristle_stiffness": 1e5, "bristle_damping": 0.0}),

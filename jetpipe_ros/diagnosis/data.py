@@ -77,6 +77,8 @@ class Prepared:
     #: normalised mean square error a perfect model would still show per signal (sensor noise
     #: through the prediction restarts), set by :func:`noise_floor.calibrate`
     floor: dict[str, float] = field(default_factory=dict)
+    #: the same per held-out prediction window (aligned with :func:`score.window_errors`)
+    floor_windows: np.ndarray | None = None
 
     def seconds(self, role: str) -> float:
         """Total length of the ``role`` samples [s]."""
@@ -166,7 +168,7 @@ def swapped(prepared: Prepared) -> Prepared:
     (the second fold of a two-fold cross-validation). The noise floor is not carried over."""
     records = [dataclasses.replace(r, train=r.holdout, holdout=r.train)
                for r in prepared.records]
-    return dataclasses.replace(prepared, records=records, floor={},
+    return dataclasses.replace(prepared, records=records, floor={}, floor_windows=None,
                                split_note=f"roles exchanged ({prepared.split_note})")
 
 

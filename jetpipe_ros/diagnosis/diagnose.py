@@ -32,7 +32,7 @@ from threadpoolctl import threadpool_limits
 from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.diagnosis import calibration
 from jetpipe_ros.diagnosis.calibration import CALIBRATION
-from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate
+from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate, effect_of
 from jetpipe_ros.diagnosis.data import SIGNALS, Prepared, prepare, swapped
 from jetpipe_ros.diagnosis.fit import BUDGET, Fit
 from jetpipe_ros.diagnosis.jobs import Fitter, Job
@@ -101,7 +101,7 @@ def fit_pairs(fitter: Fitter, nominal: ModelParams, best: Fit, names: Sequence[s
     """Pairs by forward selection: every other candidate fitted on top of the best (held at its
     fitted values, calibration included), the :data:`PAIR_POOL` that lower the training error
     most then refitted jointly with it. Selection uses the training data only."""
-    others = [e for e in names if e not in best.effects]
+    others = [e for e in names if effect_of(e) not in best.effect_names]
     progress(f"{best.name} leaves {best.holdout.gap:.2f} % of the gap: fitting each other "
              f"candidate on top of it")
     added = [stacked(best, f) for f in fitter.run([Job(best.params, (e,)) for e in others],
@@ -246,7 +246,7 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
              f"{prepared.seconds('holdout'):.1f} s holdout; {prepared.split_note}")
 
     progress("noise floor: scoring the model on a simulated twin of the dataset")
-    prepared.floor = calibrate(prepared, nominal)
+    prepared.floor, prepared.floor_windows = calibrate(prepared, nominal)
     progress("nominal model: predictions and where the gap lies")
     nom_all = predict_all(nominal, prepared, None)
     nom_hold = score(prepared, nom_all, "holdout")
@@ -254,10 +254,10 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
     nom_train = score(prepared, nom_all, "train")
     subsystems = subsystem_gaps(prepared, nominal)
 
-    candidates = [c for name, c in CANDIDATES.items() if name not in already]
-    names = [c.effect for c in candidates]
+    candidates = [c for c in CANDIDATES.values() if c.effect not in already]
+    names = [c.name for c in candidates]
     progress("how visible each candidate would be at its typical size")
-    seen = {c.effect: visibility(prepared, nominal, nom_all, c) for c in candidates}
+    seen = {c.name: visibility(prepared, nominal, nom_all, c) for c in candidates}
 
     workers = max(1, min(workers, os.cpu_count() or 1))
     with Fitter(prepared, swapped(prepared), workers, progress) as fitter:
@@ -269,11 +269,12 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
                  f"({', '.join(calibration.describe(cal.values[CAL])) or 'no knob off'})")
         on_cal = fit_on_calibration(fitter, nominal, cal, names, progress)
         ranking = rank(on_cal, cal.holdout, cal.holdout_windows, dt)
-        if ranking and needs_pairs(ranking[0], cal.holdout):
+        floor = prepared.floor_windows
+        if ranking and needs_pairs(ranking[0], floor):
             on_cal += fit_pairs(fitter, nominal, ranking[0].fit, names, progress)
             ranking = rank(on_cal, cal.holdout, cal.holdout_windows, dt)
         cross_check([cal_row, *ranking[:2]], fitter, nominal, nom_all, progress)
-        on_cal_verdict = decide(ranking, cal.holdout)
+        on_cal_verdict = decide(ranking, cal.holdout, cal.holdout_windows, floor)
         given = effect_alone = None
         alone_ranking: list[Ranked] = []
         if on_cal_verdict.winner is not None:
@@ -289,7 +290,7 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
             alone_ranking = rank(fitter.run([Job(nominal, (e,)) for e in names]), nom_hold,
                                  nom_windows, dt)
             cross_check(alone_ranking[:2], fitter, nominal, nom_all, progress)
-        alone_verdict = decide(alone_ranking, nom_hold)
+        alone_verdict = decide(alone_ranking, nom_hold, nom_windows, floor)
     settled = settle(cal_row, on_cal_verdict, alone_verdict, given, effect_alone)
 
     progress("scoring the augmented model")
@@ -325,6 +326,23 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
     return result
 
 
+def _forms(win: Ranked, ranking: Sequence[Ranked]) -> dict:
+    """For each effect of the winner that has several forms: the held-out gap of each form's
+    best row (alone or in a pair with the winner's other effects), judged as the winner was."""
+    out: dict = {}
+    for effect, form in win.fit.forms.items():
+        others = [e for e in win.fit.effect_names if e != effect]
+        rows = {}
+        for r in ranking:
+            if effect in r.fit.effect_names and sorted(e for e in r.fit.effect_names
+                                                       if e != effect) == sorted(others):
+                f = r.fit.forms[effect]
+                if f not in rows or r.fit.holdout.gap < rows[f]:
+                    rows[f] = r.fit.holdout.gap
+        out[effect] = {"chosen": form, "holdout_gap": rows}
+    return out
+
+
 def _calibration_json(cal: Fit, cal_row: Ranked, settled: Settled, nom_hold) -> dict:
     """The ``calibration`` section: the knobs the final model uses (factors against nominal),
     the held-out gap before and after recalibration alone, and whether it is needed."""
@@ -356,18 +374,22 @@ def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
             separating: dict | None, preds: dict) -> dict:
     verdict = settled.verdict
     win = verdict.winner
-    effects = list(win.fit.effects) if win else []
-    values = {e: win.fit.values[e] for e in effects} if win else {}
+    effects = list(win.fit.effect_names) if win else []
+    values = win.fit.effect_values() if win else {}
     verdict_json = {
-        "effect": win.fit.name if win else "none",
+        "effect": win.fit.effect if win else "none",
         "effects": effects,
+        "forms": win.fit.forms if win else {},
+        "candidate": win.fit.name if win else None,
+        "form_comparison": _forms(win, ranking) if win else {},
         "subsystem": "+".join(dict.fromkeys(EFFECTS[e] for e in effects)) if win else "none",
         "params": (values[effects[0]] if len(effects) == 1 else values) if win else {},
         "confidence": verdict.confidence,
         "reason": settled.reason,
         "effect_reason": verdict.reason,
-        "ambiguous_with": verdict.runner_up.fit.name if verdict.ambiguous else None,
-        "alternative": ({"explanation": settled.alternative.fit.name,
+        "ambiguous_with": verdict.runner_up.fit.effect if verdict.ambiguous else None,
+        "alternative": ({"explanation": settled.alternative.fit.effect
+                         if settled.alternative.fit.effects else CAL,
                          "holdout_gap": settled.alternative.fit.holdout.gap}
                         if settled.alternative else None),
         "separating_experiment": separating,

@@ -21,7 +21,7 @@ import numpy as np
 from scipy import optimize
 
 from jetpipe_ros.diagnosis.calibration import NAME as CALIBRATION
-from jetpipe_ros.diagnosis.candidates import KnobGroup
+from jetpipe_ros.diagnosis.candidates import CANDIDATES, KnobGroup, effect_of
 from jetpipe_ros.diagnosis.data import Prepared
 from jetpipe_ros.diagnosis.score import (Score, predict_all, residual_vector, score,
                                          window_errors)
@@ -48,8 +48,24 @@ class Fit:
 
     @property
     def effects(self) -> tuple[str, ...]:
-        """The unmodelled effects among the groups."""
+        """The candidates (unmodelled effects, ``effect`` or ``effect:form``) among the
+        groups."""
         return tuple(g for g in self.groups if g != CALIBRATION)
+
+    @property
+    def effect_names(self) -> tuple[str, ...]:
+        """The effects' names (DESIGN.md s.3), without their forms."""
+        return tuple(effect_of(g) for g in self.effects)
+
+    @property
+    def forms(self) -> dict[str, str]:
+        """The form of each effect that has several."""
+        return {effect_of(g): CANDIDATES[g].form for g in self.effects
+                if CANDIDATES[g].form is not None}
+
+    def effect_values(self) -> dict[str, dict[str, float]]:
+        """The fitted parameters by effect name (calibration knobs left out)."""
+        return {effect_of(g): self.values[g] for g in self.effects}
 
     @property
     def calibrated(self) -> bool:
@@ -58,8 +74,14 @@ class Fit:
 
     @property
     def name(self) -> str:
-        """The effects joined with '+' (``calibration`` when there is none)."""
+        """The candidates joined with '+' (``calibration`` when there is none)."""
         return "+".join(self.effects) or CALIBRATION
+
+    @property
+    def effect(self) -> str:
+        """The effects' names joined with '+' (``none`` when there is none): the verdict's
+        vocabulary."""
+        return "+".join(self.effect_names) or "none"
 
 
 class _BudgetSpent(Exception):

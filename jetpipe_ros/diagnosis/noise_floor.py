@@ -4,7 +4,8 @@ Sensor noise enters the score twice: directly, and through the measured states e
 restarts from. The second part depends on the experiments, so it is measured rather than assumed:
 a twin of the dataset is simulated with the model itself (same commands, pistons and split), the
 estimated sensor noise is added, and the twin is scored exactly as the data are. Its per-signal
-error is the floor that the gap metric subtracts.
+error is the floor that the gap metric subtracts; its error per prediction window is what a
+model's remaining error is tested against (is a gap left beyond noise?).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import dataclasses
 import numpy as np
 
 from jetpipe_ros.diagnosis.data import Prepared, smoothed, velocity
-from jetpipe_ros.diagnosis.score import predict_all, score
+from jetpipe_ros.diagnosis.score import predict_all, score, window_errors
 from jetpipe_ros.model import ModelParams, simulate
 
 SEED = 20261122
@@ -43,8 +44,10 @@ def twin(prepared: Prepared, params: ModelParams, seed: int = SEED) -> Prepared:
     return dataclasses.replace(prepared, records=records, floor={})
 
 
-def calibrate(prepared: Prepared, params: ModelParams) -> dict[str, float]:
-    """Per-signal normalised mean square error of the perfect model on the held-out twin."""
+def calibrate(prepared: Prepared, params: ModelParams) -> tuple[dict[str, float], np.ndarray]:
+    """Per-signal normalised mean square error of the perfect model on the held-out twin, and
+    its error per held-out prediction window (:func:`score.window_errors`, aligned with the
+    data's windows): what noise alone leaves in each window."""
     tw = twin(prepared, params)
-    s = score(tw, predict_all(params, tw, "holdout"), "holdout")
-    return dict(s.mse)
+    preds = predict_all(params, tw, "holdout")
+    return dict(score(tw, preds, "holdout").mse), window_errors(tw, preds, "holdout")

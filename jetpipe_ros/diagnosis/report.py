@@ -44,10 +44,10 @@ def ranking_figure(result: dict) -> str:
     nominal and the recalibrated model's."""
     plt = _plt()
     rows = result["ranking"]
-    names = [r["effect"] for r in rows]
+    names = [r["candidate"] for r in rows]
     gaps = [r["holdout_gap"] for r in rows]
     fig, ax = plt.subplots(figsize=(8, 0.35 * len(rows) + 1.2))
-    colors = ["#1f77b4" if r["effect"] == result["verdict"]["effect"] else
+    colors = ["#1f77b4" if r["candidate"] == result["verdict"]["candidate"] else
               ("#9ecae1" if r["explains"] else "#cccccc") for r in rows]
     ax.barh(names[::-1], gaps[::-1], color=colors[::-1])
     ax.axvline(result["gap"]["nominal"], color=COLORS["nominal"], ls="--",
@@ -194,6 +194,13 @@ def summary(result: dict) -> str:
                          f"</code></b> ({html.escape(v['subsystem'])}; {html.escape(ptxt)}), "
                          f"confidence {v['confidence']:.2f}; the nominal parameters need no "
                          f"correction beyond noise.")
+        for effect, cmp in v["form_comparison"].items():
+            gaps = cmp["holdout_gap"]
+            rest = ", ".join(f"{f} {g:.2f} %" for f, g in gaps.items() if f != cmp["chosen"])
+            lines.append(f"Form of <code>{html.escape(effect)}</code>: <b>"
+                         f"{html.escape(cmp['chosen'])}</b> (held-out gap "
+                         f"{gaps.get(cmp['chosen'], float('nan')):.2f} %"
+                         + (f"; the other form: {html.escape(rest)}" if rest else "") + ").")
         words = v["effect_reason"]
         if cal["significant"] and cal["shrinkage_given_effect"] is not None:
             words += (f"; recalibrating the nominal parameters as well removes "
@@ -286,7 +293,7 @@ def render(result: dict, prepared: Prepared, preds: dict) -> str:
     paper = result["gap"]["paper_metrics"]
     metric_rows = [[k, paper["nominal"].get(k), paper["augmented"].get(k)]
                    for k in paper["nominal"]]
-    rank_rows = [[r["effect"], r["subsystem"], r["train_gap"], r["holdout_gap"],
+    rank_rows = [[r["candidate"], r["subsystem"], r["train_gap"], r["holdout_gap"],
                   f"{100 * r['shrinkage']:.0f} %", r["t"], r["t_cross_check"],
                   "yes" if r["explains"] else "no",
                   f"{100 * r['alone']['shrinkage']:.0f} %" if r["alone"] else None,

@@ -1,0 +1,311 @@
+"""Equation errors: what each equation of a model leaves unexplained in recorded data, and a
+sparse description of their shape.
+
+When no candidate explains a gap, the missing physics is located by asking each equation of the
+(recalibrated) model what it leaves over, sample by sample, with every state taken from the
+measurements (smoothed, zero phase) rather than simulated:
+
+- **chamber 1 and chamber 2 mass balance** (Eq. 8, 11-13 with the model's effects): the measured
+  pressure rate against the model's rate at the measured pressures, position, velocity and the
+  equivalent valve voltage the model's valve chain makes of the recorded command; expressed as an
+  equivalent mass flow into the chamber [kg/s] (rate error x V / (r T));
+- **force balance** (Eq. 14 with Eq. 15-18) while the piston slides: the measured acceleration
+  times the mass against the pneumatic force, the load and the friction at the measured states
+  [N].
+
+Each equation error is compared with the same error on the noise twin of the dataset (the model
+itself re-measured with the sensor noise, :mod:`noise_floor`): the ratio of their RMS says which
+equation holds a gap beyond noise. The error is then regressed on a small library of terms that
+each name a physical shape and the subsystem it belongs to (a constant, an offset in the valve
+command, a flow gain that changes with chamber pressure, a leak across the piston or to
+atmosphere, a force near the end stops, ...), with a sparse linear model whose number of terms
+is chosen by the Bayesian information criterion (scikit-learn's ``LassoLarsIC``). The terms
+that carry the error describe the missing physics in words, with the operating regime where the
+error is largest.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import savgol_filter
+from sklearn.linear_model import LassoLarsIC
+
+from jetpipe_ros.diagnosis.data import Prepared, Record
+from jetpipe_ros.diagnosis.localize import REGIMES, regimes
+from jetpipe_ros.model import Actuator, ModelParams, build_constants, kernel
+from jetpipe_ros.model.chamber import chamber_volumes
+from jetpipe_ros.model.flow import P_ATM
+from jetpipe_ros.model.friction import friction_parameters, stribeck_force
+
+#: Sliding: |v| above this [m/s] (the force balance is indeterminate while stuck).
+SLIDING = 5e-3
+#: Savitzky-Golay window of the derivatives [s] (zero phase, quadratic).
+WINDOW = 0.021
+#: End-stop zone of the library's cushion terms: the last 3 mm of stroke [m].
+CUSHION = 3e-3
+#: An equation error whose RMS exceeds the noise twin's by this factor holds a gap: twice the
+#: noise's RMS, i.e. a systematic part at least sqrt(3) times the noise.
+BEYOND_NOISE = 2.0
+#: Library terms that carry less than this share of an error's variance are not described.
+LEAST_SHARE = 0.1
+
+EQUATIONS = ("chamber 1 mass balance", "chamber 2 mass balance", "force balance")
+_SUBSYSTEM_OF_EQUATION = {"chamber 1 mass balance": "valve+chamber",
+                          "chamber 2 mass balance": "valve+chamber",
+                          "force balance": "mechanics"}
+
+
+@dataclass
+class Term:
+    """One library term: what its shape means, the subsystem it points to, its values."""
+
+    name: str
+    meaning: str
+    subsystem: str
+    values: np.ndarray
+
+
+@dataclass
+class EquationError:
+    """One equation's error over the dataset, with its library and the noise twin's RMS."""
+
+    equation: str
+    unit: str
+    error: np.ndarray  #: the error on the samples used [unit]
+    regime: dict[str, np.ndarray]  #: regime masks over the same samples
+    terms: list[Term]
+    noise_rms: float = 0.0  #: RMS of the same error on the noise twin [unit]
+
+    @property
+    def rms(self) -> float:
+        """RMS of the error [unit]."""
+        return float(np.sqrt(np.mean(self.error ** 2))) if self.error.size else 0.0
+
+    @property
+    def over_noise(self) -> float:
+        """RMS of the error over the noise twin's."""
+        return self.rms / self.noise_rms if self.noise_rms > 0 else 0.0
+
+
+def _derivative(x: np.ndarray, dt: float, order: int) -> np.ndarray:
+    n = max(5, int(round(WINDOW / dt)) | 1)
+    if x.size < n:
+        return np.gradient(x, dt) if order == 1 else np.gradient(np.gradient(x, dt), dt)
+    return savgol_filter(x, n, 2, deriv=order, delta=dt)
+
+
+def _equivalent_voltage(params: ModelParams, rec: Record, dt: float) -> np.ndarray:
+    """The model's equivalent valve voltage u_eq [V] for the recorded command, sample by sample
+    (the valve chain with its delay, lags and hysteresis; chambers and piston held on the
+    measurements, which the chain does not depend on)."""
+    act = Actuator(params.with_values({"mechanics.locked": rec.locked, "sensors.noise": False,
+                                       "integration.sample_time": dt}))
+    n = rec.t.size
+    drive = np.column_stack([rec.smooth["y"], rec.v, rec.smooth["p1"], rec.smooth["p2"]])
+    out = act.run(rec.u, rec.f_load, drive)
+    # Row k is the end of sample k: the voltage acting over [t_k, t_k+1).
+    return np.concatenate([out[:-1, kernel.OUT_UEQ], out[-1:, kernel.OUT_UEQ]])[:n]
+
+
+def chamber_errors(params: ModelParams, rec: Record, dt: float) -> tuple[np.ndarray, ...]:
+    """Mass-balance errors of chambers 1 and 2 [kg/s equivalent] at every sample, and the
+    model's inflows q1, q2 [kg/s] and flow sensitivities dq/du [kg/(s V)] there."""
+    c = build_constants(params)
+    u_eq = _equivalent_voltage(params, rec, dt)
+    y = rec.smooth["y"] if not rec.locked else np.full(rec.t.size, rec.smooth["y"][0])
+    v = rec.v
+    p1, p2 = rec.smooth["p1"], rec.smooth["p2"]
+    dp1 = _derivative(rec.p1, dt, 1)
+    dp2 = _derivative(rec.p2, dt, 1)
+    rates = kernel.chamber_rates_array(c, p1, p2, y, v, u_eq)
+    vol1, vol2 = chamber_volumes(y, c.area, c.v01, c.v02)
+    e1 = (dp1 - rates[0]) * vol1 / c.rt
+    e2 = (dp2 - rates[1]) * vol2 / c.rt
+    return e1, e2, rates[2], rates[3], rates[4], rates[5], u_eq
+
+
+def force_error(params: ModelParams, rec: Record, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Force-balance error [N] while sliding, and the mask of sliding samples."""
+    c = build_constants(params)
+    y = rec.smooth["y"]
+    v = rec.v
+    a = _derivative(rec.y, dt, 2)
+    p1, p2 = rec.smooth["p1"], rec.smooth["p2"]
+    sliding = (np.abs(v) > SLIDING) & (np.abs(y) < c.y_max)
+    err = np.zeros(rec.t.size)
+    for k in np.flatnonzero(sliding):
+        f_s, v_s, f_v, f_c = friction_parameters(c.planes, np.sign(v[k]), p1[k], p2[k])
+        friction = stribeck_force(v[k], f_s, v_s, f_c) + f_v * v[k]
+        err[k] = c.mass * a[k] - (c.area * (p1[k] - p2[k]) - rec.f_load[k] - friction)
+    return err, sliding
+
+
+def _chamber_terms(i: int, p: np.ndarray, p_other: np.ndarray, q: np.ndarray,
+                   dqdu: np.ndarray, u_eq: np.ndarray, v: np.ndarray, area: float,
+                   rt: float, p_supply: float) -> list[Term]:
+    sign = 1.0 if i == 1 else -1.0
+    mid = 0.5 * (p_supply + P_ATM)
+    return [
+        Term("constant", f"a constant flow into chamber {i}", "valve+chamber",
+             np.ones_like(p)),
+        Term("valve offset", "an offset in the valve command (the flow map's null shifted)",
+             "valve", dqdu),
+        Term("valve gain", "a valve gain error (flow error proportional to the command's "
+             "effect)", "valve", u_eq * dqdu),
+        Term("flow scale", "a flow-map gain error (flow error proportional to the flow)",
+             "valve", q),
+        Term("flow x pressure", f"a flow-map gain that changes with chamber {i}'s pressure",
+             "valve", q * (p - mid) / (p_supply - P_ATM)),
+        Term("leak to atmosphere", f"a flow out of chamber {i} that grows with its pressure "
+             f"above atmosphere", "chamber", -(p - P_ATM) * 1e-10),
+        Term("leak across the piston", "a flow from the higher-pressure chamber to the other",
+             "chamber", -(p - p_other) * 1e-10),
+        Term("compression", f"a term with the volume change of chamber {i} (non-isothermal "
+             f"gas)", "chamber", -sign * area * p * v / rt),
+    ]
+
+
+def _force_terms(y: np.ndarray, v: np.ndarray, a: np.ndarray, dp: np.ndarray, area: float,
+                 y_max: float) -> list[Term]:
+    zone = np.maximum(np.abs(y) - (y_max - CUSHION), 0.0) * np.sign(y)
+    return [
+        Term("constant", "a constant force on the piston", "mechanics", np.ones_like(y)),
+        Term("viscous", "a force proportional to the velocity", "mechanics", v),
+        Term("coulomb", "a constant force against the motion", "mechanics", np.sign(v)),
+        Term("pneumatic scale", "a force proportional to the pressure difference (area)",
+             "mechanics", area * dp),
+        Term("inertia", "a force proportional to the acceleration (mass)", "mechanics", a),
+        Term("end-stop spring", "a force that grows in the last 3 mm of stroke (cushioning)",
+             "mechanics", zone),
+        Term("end-stop damping", "a force against the motion in the last 3 mm of stroke",
+             "mechanics", v * (zone != 0.0)),
+    ]
+
+
+def equation_errors(prepared: Prepared, params: ModelParams,
+                    stroke: float) -> list[EquationError]:
+    """The three equation errors over all experiments, with their libraries and regimes."""
+    parts: dict[str, dict[str, list]] = {e: {"err": [], "terms": [], "reg": []}
+                                         for e in EQUATIONS}
+    c = build_constants(params)
+    dt = prepared.dt
+    for rec in prepared.records:
+        reg = regimes(rec, dt, stroke)
+        if not rec.regulated:
+            e1, e2, q1, q2, g1, g2, u_eq = chamber_errors(params, rec, dt)
+            p1, p2 = rec.smooth["p1"], rec.smooth["p2"]
+            for i, e, p, po, q, g in ((1, e1, p1, p2, q1, g1), (2, e2, p2, p1, q2, g2)):
+                d = parts[EQUATIONS[i - 1]]
+                d["err"].append(e)
+                d["terms"].append(_chamber_terms(i, p, po, q, g, u_eq, rec.v, c.area, c.rt,
+                                                 c.p_supply))
+                d["reg"].append(reg)
+        if not rec.locked:
+            err, sliding = force_error(params, rec, dt)
+            a = _derivative(rec.y, dt, 2)
+            terms = _force_terms(rec.smooth["y"], rec.v, a,
+                                 rec.smooth["p1"] - rec.smooth["p2"], c.area, c.y_max)
+            d = parts["force balance"]
+            d["err"].append(err[sliding])
+            d["terms"].append([Term(t.name, t.meaning, t.subsystem, t.values[sliding])
+                               for t in terms])
+            d["reg"].append({k: m[sliding] for k, m in reg.items()})
+    out = []
+    for eq, d in parts.items():
+        if not d["err"]:
+            continue
+        terms = [Term(t.name, t.meaning, t.subsystem,
+                      np.concatenate([ts[j].values for ts in d["terms"]]))
+                 for j, t in enumerate(d["terms"][0])]
+        regime = {r: np.concatenate([rg.get(r, np.zeros(e.size, dtype=bool))
+                                     for rg, e in zip(d["reg"], d["err"])]) for r in REGIMES}
+        unit = "N" if eq == "force balance" else "kg/s"
+        out.append(EquationError(eq, unit, np.concatenate(d["err"]), regime, terms))
+    return out
+
+
+def sparse_terms(err: EquationError) -> list[dict]:
+    """The library terms that carry the error (sparse regression, BIC), with their share of
+    its variance, best first."""
+    if err.error.size < 50:
+        return []
+    x = np.column_stack([t.values for t in err.terms])
+    scale = x.std(axis=0)
+    keep = scale > 0
+    xs = (x[:, keep] - x[:, keep].mean(axis=0)) / scale[keep]
+    const = [t for t, k in zip(err.terms, keep) if not k]
+    y = err.error - err.error.mean()
+    model = LassoLarsIC(criterion="bic").fit(xs, y)
+    total = float(np.sum(y ** 2)) or 1.0
+    rows = []
+    for coef, term in zip(model.coef_, [t for t, k in zip(err.terms, keep) if k]):
+        if coef == 0.0:
+            continue
+        col = (term.values - term.values.mean()) / term.values.std()
+        share = float(np.sum((coef * col) ** 2) / total)
+        rows.append({"term": term.name, "meaning": term.meaning, "subsystem": term.subsystem,
+                     "coefficient": float(coef / term.values.std()), "share": share})
+    mean = float(err.error.mean())
+    if const and abs(mean) > 0 and mean ** 2 >= LEAST_SHARE * float(np.mean(err.error ** 2)):
+        rows.append({"term": const[0].name, "meaning": const[0].meaning,
+                     "subsystem": const[0].subsystem, "coefficient": mean,
+                     "share": mean ** 2 / float(np.mean(err.error ** 2))})
+    return sorted((r for r in rows if r["share"] >= LEAST_SHARE), key=lambda r: -r["share"])
+
+
+def worst_regime(err: EquationError) -> tuple[str, float] | None:
+    """The regime where the error's RMS is largest relative to its RMS overall."""
+    best = None
+    for name, mask in err.regime.items():
+        if mask.sum() < 100:
+            continue
+        ratio = float(np.sqrt(np.mean(err.error[mask] ** 2))) / max(err.rms, 1e-300)
+        if best is None or ratio > best[1]:
+            best = (name, ratio)
+    return best
+
+
+def locate(data: Prepared, twin: Prepared, params: ModelParams, stroke: float) -> dict:
+    """Where the model's equations leave a gap beyond noise and what shape it has."""
+    errors = equation_errors(data, params, stroke)
+    noise = {e.equation: e.rms for e in equation_errors(twin, params, stroke)}
+    out = {"equations": {}, "beyond_noise": BEYOND_NOISE}
+    for e in errors:
+        e.noise_rms = noise.get(e.equation, 0.0)
+        reg = worst_regime(e)
+        out["equations"][e.equation] = {
+            "unit": e.unit, "rms": e.rms, "noise_rms": e.noise_rms,
+            "over_noise": e.over_noise,
+            "terms": sparse_terms(e) if e.over_noise >= BEYOND_NOISE else [],
+            "worst_regime": {"regime": reg[0], "rms_over_overall": reg[1]} if reg else None}
+    ranked = sorted(out["equations"].items(), key=lambda kv: -kv[1]["over_noise"])
+    top = ranked[0] if ranked and ranked[0][1]["over_noise"] >= BEYOND_NOISE else None
+    if top is not None:
+        eq, info = top
+        sub = info["terms"][0]["subsystem"] if info["terms"] else _SUBSYSTEM_OF_EQUATION[eq]
+        out["missing"] = {"equation": eq, "subsystem": sub, "terms": info["terms"],
+                          "regime": info["worst_regime"]}
+    else:
+        out["missing"] = None
+    return out
+
+
+def describe(located: dict) -> str:
+    """The missing physics in words, from :func:`locate`."""
+    m = located.get("missing")
+    if not m:
+        return "no equation of the model holds an error beyond noise"
+    words = f"the {m['equation']} ({m['subsystem']})"
+    if m["terms"]:
+        shapes = "; ".join(f"{t['meaning']} ({100 * t['share']:.0f} % of its variance)"
+                           for t in m["terms"][:2])
+        words += f" leaves an error shaped as {shapes}"
+    else:
+        words += " leaves an error no library term describes"
+    if m["regime"] and m["regime"]["rms_over_overall"] > 1.3:
+        words += (f", largest when {m['regime']['regime'].replace('_', ' ')} "
+                  f"({m['regime']['rms_over_overall']:.1f} x its RMS overall)")
+    return words
+
