@@ -173,8 +173,7 @@ def _valve_pass(c: Constants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
                     acc += va[i, j] * state[j]
                 # Decaying derivative states would otherwise end in subnormals (~100x slower).
                 new[i] = acc if abs(acc) > 1e-200 else 0.0
-            for i in range(VALVE_ORDER):
-                state[i] = new[i]
+            state, new = new, state
             if n_play:
                 # Prandtl-Ishlinskii: the mean of play operators (one element = a single play).
                 acc = 0.0
