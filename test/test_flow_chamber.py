@@ -76,3 +76,14 @@ def test_valve_gain_moves_the_locked_equilibrium_to_the_null_of_the_scaled_volta
     null = optimize.brentq(lambda x: chamber_inflow(COEF, gain * u, x, 1e6), 2e5, 9.9e5)
     assert tr.p1[-1] == pytest.approx(null, rel=2e-3)
     assert tr.u_eq[-1] == pytest.approx(gain * u, rel=1e-6)
+
+
+def test_flow_polynomial_is_the_papers_sum_of_terms():
+    """Eq. 8 evaluated by Horner's scheme equals the 21 terms in the paper's order."""
+    rng = np.random.default_rng(2)
+    for u, p in zip(rng.uniform(-3.4, 3.4, 200), rng.uniform(1.0, 10.0, 200)):
+        terms = [1, u, p, u**2, u * p, p**2, u**3, u**2 * p, u * p**2, p**3, u**4, u**3 * p,
+                 u**2 * p**2, u * p**3, p**4, u**5, u**4 * p, u**3 * p**2, u**2 * p**3,
+                 u * p**4, p**5]
+        assert flow_polynomial(COEF, u, p) == pytest.approx(1e-3 * COEF @ terms, rel=1e-12,
+                                                            abs=1e-15)

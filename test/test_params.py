@@ -58,3 +58,17 @@ def test_every_spec_has_description_and_valid_default():
     for spec in SPECS.values():
         assert spec.description
         ModelParams({spec.name: spec.default})
+
+
+def test_with_values_checks_the_changes_and_copies():
+    base = ModelParams({"mechanics.mass": 2.0})
+    changed = base.with_values({"valve.delay": 0.003, "chamber.regulated": True})
+    assert dict(changed) == dict(ModelParams({**base, "valve.delay": 0.003,
+                                              "chamber.regulated": True}))
+    assert base["valve.delay"] == 0.002 and not base["chamber.regulated"]
+    changed["flow.coefficients"][0] = 99.0  # a list is the copy's own
+    assert base["flow.coefficients"][0] != 99.0
+    with pytest.raises(ParameterError, match="mechanics.mass"):
+        base.with_values({"mechanics.mass": -1.0})
+    with pytest.raises(ParameterError, match="valve.dealy"):
+        base.with_values({"valve.dealy": 0.003})

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from jetpipe_ros.model import ModelParams, simulate
+from jetpipe_ros.model import ModelParams, build_constants, simulate
 from jetpipe_ros.model.valve import (U_EQ_MAX, U_EQ_MIN, jetpipe_position, jetpipe_tf,
                                      midpoint_voltage, valve_tf)
 
@@ -70,3 +70,13 @@ def test_jetpipe_characteristic_bounds_and_sign():
     assert jetpipe_position(3.4) == pytest.approx(1e-3)
     assert jetpipe_position(-3.4) == pytest.approx(-1e-3)
     assert jetpipe_position(1.0) > 0 > jetpipe_position(-1.0)
+
+
+def test_discretisation_is_shared_by_equal_chain_parameters():
+    """Models differing elsewhere (here an experiment's initial state) reuse one discretisation;
+    a chain parameter or the sub-step makes a new one."""
+    base = build_constants(P)
+    other = build_constants(P.with_values({"chamber.initial_pressure_1": 2e5}))
+    assert other.valve_a is base.valve_a
+    for change in ({"valve.lag_pole": 150.0}, {"integration.substeps": 8}):
+        assert build_constants(P.with_values(change)).valve_a is not base.valve_a

@@ -24,23 +24,23 @@ P_SUPPLY_NOMINAL = 1.0e6
 def flow_polynomial(coef: np.ndarray, u: float, p_bar: float) -> float:
     """Eq. 8: mass flow [kg/s] for voltage ``u`` [V] and pressure ``p_bar`` [bar].
 
-    ``coef`` holds the 21 coefficients in the paper's order (result in g/s).
+    ``coef`` holds the 21 coefficients in the paper's order (result in g/s): by total degree,
+    and within a degree by falling power of u (1; u, p; u^2, u p, p^2; ...; u p^4, p^5).
+    Evaluated as a polynomial in p whose coefficients are polynomials in u, both by Horner's
+    scheme: the 21 terms summed one after the other (a chain of 20 dependent additions) made
+    the integration kernel about 10 % slower.
     """
-    u2 = u * u
-    u3 = u2 * u
-    u4 = u3 * u
-    p2 = p_bar * p_bar
-    p3 = p2 * p_bar
-    p4 = p3 * p_bar
-    g = (coef[0] + coef[1] * u + coef[2] * p_bar + coef[3] * u2 + coef[4] * u * p_bar
-         + coef[5] * p2 + coef[6] * u3 + coef[7] * u2 * p_bar + coef[8] * u * p2
-         + coef[9] * p3 + coef[10] * u4 + coef[11] * u3 * p_bar + coef[12] * u2 * p2
-         + coef[13] * u * p3 + coef[14] * p4 + coef[15] * u4 * u + coef[16] * u4 * p_bar
-         + coef[17] * u3 * p2 + coef[18] * u2 * p3 + coef[19] * u * p4 + coef[20] * p4 * p_bar)
-    return g * 1e-3
+    c = coef
+    a0 = c[0] + u * (c[1] + u * (c[3] + u * (c[6] + u * (c[10] + u * c[15]))))
+    a1 = c[2] + u * (c[4] + u * (c[7] + u * (c[11] + u * c[16])))
+    a2 = c[5] + u * (c[8] + u * (c[12] + u * c[17]))
+    a3 = c[9] + u * (c[13] + u * c[18])
+    a4 = c[14] + u * c[19]
+    p = p_bar
+    return (a0 + p * (a1 + p * (a2 + p * (a3 + p * (a4 + p * c[20]))))) * 1e-3
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def chamber_inflow(coef: np.ndarray, u: float, p: float, p_supply: float,
                    gain_charge: float = 1.0, gain_discharge: float = 1.0) -> float:
     """Mass flow [kg/s] into a chamber at pressure ``p`` [Pa] for equivalent voltage ``u`` [V].
@@ -51,7 +51,7 @@ def chamber_inflow(coef: np.ndarray, u: float, p: float, p_supply: float,
     valve's flow map differs from the paper's by a factor per direction.
     """
     span = (p_supply - P_ATM) / (P_SUPPLY_NOMINAL - P_ATM)
-    p_map = 1.0 + (p - P_ATM) / span * 1e-5
+    p_map = 1.0 + (p - P_ATM) * (1e-5 / span)
     p_map = min(max(p_map, 1.0), 10.0)
     q = span * flow_polynomial(coef, u, p_map)
     if q < 0.0:

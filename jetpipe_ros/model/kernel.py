@@ -13,6 +13,10 @@ below) plus a ring buffer holding the valve's delay line. Per sub-step of length
    the stick logic;
 5. the position advances (semi-implicit Euler) and stops inelastically at the end stops.
 
+Steps 1-2 depend on the command only, so :func:`advance` runs them ahead over a block of samples
+(:func:`_valve_pass`) and steps 3-5 after (:func:`_physics_pass`); the arithmetic is that of one
+sub-step after the other, so one sample at a time (the node) and a whole run give the same bits.
+
 Subsystems can be driven instead of simulated, to judge them apart (the diagnosis) or to emulate
 test rigs: a ``drive`` array prescribes, sample by sample, the piston position and velocity
 (the chambers then see the recorded motion) and/or the chamber pressures (the mechanics then see
@@ -120,124 +124,210 @@ def measure(c: Constants, x: np.ndarray, noise: np.ndarray, out: np.ndarray) -> 
         out[OUT_P2_MEAS] = x[P2] + offset + c.sigma_p * noise[2]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _valve_substep(c: Constants, xv: np.ndarray, tmp: np.ndarray, ring: np.ndarray, head: int,
-                   u: float, play: np.ndarray) -> float:
-    """Advance the valve chain one sub-step from delay-line slot ``head``; return u_eq [V].
+#: Largest order of the valve chain: Eq. 4's third order, Eq. 9's lead-lag, the valve_lag effect.
+VALVE_ORDER = 5
 
-    ``xv`` holds the chain's state (updated in place, ``tmp`` is scratch of the same size);
-    ``play`` the hysteresis operators' outputs [V] (updated in place).
+#: Samples per block of :func:`advance`: the valve pass fills one block's u_eq before the
+#: physics pass reads it, so the buffer stays in the first-level cache.
+BLOCK = 64
+
+
+@njit(cache=True, error_model="numpy")
+def _valve_pass(c: Constants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
+                u_eq: np.ndarray) -> None:
+    """Run the valve chain over the sub-steps of the samples ``u`` [V, clipped].
+
+    ``u_eq[k * substeps + s]`` [V] receives the equivalent voltage of sub-step s of sample k.
+    The chain's state, the hysteresis operators' outputs and the delay line's write slot in
+    ``x``, and the delay line ``ring``, are updated in place.
     """
-    ring[head] = u
-    u_d = ring[(head - c.delay_steps) % ring.shape[0]]
-    va = c.valve_a
-    vb = c.valve_b
-    vc = c.valve_c
-    nv = vb.shape[0]
-    u_f = c.valve_d * u_d
-    for i in range(nv):
-        u_f += vc[i] * xv[i]
-    for i in range(nv):
-        acc = vb[i] * u_d
-        for j in range(nv):
-            acc += va[i, j] * xv[j]
-        # Decaying derivative states would otherwise end in subnormals, which are ~100x slower.
-        tmp[i] = acc if abs(acc) > 1e-200 else 0.0
-    xv[:] = tmp
+    nv = c.valve_b.shape[0]
+    # The chain's matrices padded with zeros to VALVE_ORDER: loops of constant length unroll.
+    va = np.zeros((VALVE_ORDER, VALVE_ORDER))
+    vb = np.zeros(VALVE_ORDER)
+    vc = np.zeros(VALVE_ORDER)
+    state = np.zeros(VALVE_ORDER)
+    va[:nv, :nv] = c.valve_a
+    vb[:nv] = c.valve_b
+    vc[:nv] = c.valve_c
+    state[:nv] = x[VALVE:VALVE + nv]
+    new = np.zeros(VALVE_ORDER)
     n_play = c.hysteresis.shape[0]
-    if n_play:
-        # Prandtl-Ishlinskii: the mean of play operators (one element = a single play).
-        acc = 0.0
-        for i in range(n_play):
-            r = c.hysteresis[i]
-            play[i] = min(max(play[i], u_f - r), u_f + r)
-            acc += play[i]
-        u_f = acc / n_play
-    return min(max(c.valve_gain * u_f, U_EQ_MIN), U_EQ_MAX)
+    play = x[PLAY:PLAY + n_play]
+    head = int(x[HEAD])
+    size = ring.shape[0]
+    lag = size - c.delay_steps  # the slot delay_steps behind head, ahead of it modulo size
+    i_out = 0
+    for k in range(u.shape[0]):
+        for _ in range(c.substeps):
+            ring[head] = u[k]
+            tail = head + lag
+            u_d = ring[tail - size if tail >= size else tail]
+            head = head + 1 if head + 1 < size else 0
+            u_f = c.valve_d * u_d
+            for i in range(VALVE_ORDER):
+                u_f += vc[i] * state[i]
+            for i in range(VALVE_ORDER):
+                acc = vb[i] * u_d
+                for j in range(VALVE_ORDER):
+                    acc += va[i, j] * state[j]
+                # Decaying derivative states would otherwise end in subnormals (~100x slower).
+                new[i] = acc if abs(acc) > 1e-200 else 0.0
+            state, new = new, state
+            if n_play:
+                # Prandtl-Ishlinskii: the mean of play operators (one element = a single play).
+                acc = 0.0
+                for i in range(n_play):
+                    r = c.hysteresis[i]
+                    play[i] = min(max(play[i], u_f - r), u_f + r)
+                    acc += play[i]
+                u_f = acc / n_play
+            u_eq[i_out] = min(max(c.valve_gain * u_f, U_EQ_MIN), U_EQ_MAX)
+            i_out += 1
+    x[VALVE:VALVE + nv] = state[:nv]
+    x[HEAD] = head
+
+
+@njit(cache=True, error_model="numpy")
+def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
+                  f_load: np.ndarray, drive: np.ndarray, noise: np.ndarray, out: np.ndarray
+                  ) -> None:
+    """Advance chambers and piston over the samples of ``u`` [V, clipped] from state ``x``.
+
+    ``u_eq`` [V] holds the equivalent voltage of every sub-step (:func:`_valve_pass`);
+    ``f_load``, ``drive``, ``noise`` and ``out`` are row-aligned with ``u`` (see
+    :func:`advance`). Within a sample the state lives in local variables. The inlined helpers
+    take arrays and numbers, not ``c``: passing a tuple that holds arrays to an inlined
+    function costs reference counting (atomic operations) on every sub-step.
+    """
+    ns = c.substeps
+    h = c.dt / ns
+    coef = c.flow_coef
+    planes = c.planes
+    sensor_w = 1.0 - math.exp(-h / c.sensor_tau) if c.sensor_tau > 0.0 else 0.0
+    driven = drive.shape[0] > 0
+    for k in range(u.shape[0]):
+        move = not c.locked
+        pressurise = not c.regulated
+        if driven:
+            if math.isfinite(drive[k, DRIVE_Y]):
+                x[Y] = drive[k, DRIVE_Y]
+                x[V] = drive[k, DRIVE_V]
+                x[FRICTION] = 0.0
+                move = False
+            if math.isfinite(drive[k, DRIVE_P1]):
+                x[P1] = drive[k, DRIVE_P1]
+                x[P2] = drive[k, DRIVE_P2]
+                pressurise = False
+        y, v, p1, p2 = x[Y], x[V], x[P1], x[P2]
+        stuck, z, friction = x[STUCK], x[Z], x[FRICTION]
+        t1, t2, ps1, ps2 = x[T1], x[T2], x[PS1], x[PS2]
+        f_l = f_load[k]
+        for s in range(k * ns, (k + 1) * ns):
+            if pressurise:
+                # Chambers (Eq. 11-13): flow map, leakage, volumes, pressure (and gas
+                # temperature) rates; explicit.
+                q1 = chamber_inflow(coef, u_eq[s], p1, c.p_supply, c.gain_charge,
+                                    c.gain_discharge)
+                q2 = chamber_inflow(coef, -u_eq[s], p2, c.p_supply, c.gain_charge,
+                                    c.gain_discharge)
+                q_x = c.leak_cross * (p1 - p2)
+                q1 += -q_x - c.leak_atm * (p1 - P_ATM)
+                q2 += q_x - c.leak_atm * (p2 - P_ATM)
+                if c.orifice_cross > 0.0 or c.orifice_atm > 0.0:
+                    t_up = t1 if p1 > p2 else t2
+                    q_x = orifice_flow(c.orifice_cross, p1, p2, c.r_gas * t_up)
+                    q1 += -q_x - orifice_flow(c.orifice_atm, p1, P_ATM, c.r_gas * t1)
+                    q2 += q_x - orifice_flow(c.orifice_atm, p2, P_ATM, c.r_gas * t2)
+                vol1, vol2 = chamber_volumes(y, c.area, c.v01, c.v02)
+                if c.heat_transfer > 0.0:
+                    dvol = c.area * v
+                    dp1, dt1 = pressure_temperature_rates(q1, p1, t1, dvol, vol1, c.r_gas,
+                                                          c.t_wall, GAMMA_AIR, c.heat_transfer)
+                    dp2, dt2 = pressure_temperature_rates(q2, p2, t2, -dvol, vol2, c.r_gas,
+                                                          c.t_wall, GAMMA_AIR, c.heat_transfer)
+                    t1 = max(t1 + h * dt1, 1.0)
+                    t2 = max(t2 + h * dt2, 1.0)
+                else:
+                    dp1, dp2 = pressure_rates(q1, q2, p1, p2, v, vol1, vol2, c.area, c.rt,
+                                              c.polytropic)
+                p1 = max(p1 + h * dp1, MIN_PRESSURE)
+                p2 = max(p2 + h * dp2, MIN_PRESSURE)
+            if move:
+                y, v, stuck, z, friction = _mechanics_substep(
+                    planes, c.area * (p1 - p2) - f_l, p1, p2, h, c.mass, c.y_max, c.lugre,
+                    c.sigma0, c.sigma1, y, v, stuck, z, friction)
+            elif c.locked:
+                v = 0.0
+                friction = 0.0
+            else:
+                y = min(max(y + h * v, -c.y_max), c.y_max)
+            if c.sensor_tau > 0.0:
+                ps1 += sensor_w * (p1 - ps1)
+                ps2 += sensor_w * (p2 - ps2)
+        x[Y], x[V], x[P1], x[P2] = y, v, p1, p2
+        x[STUCK], x[Z], x[FRICTION] = stuck, z, friction
+        x[T1], x[T2], x[PS1], x[PS2] = t1, t2, ps1, ps2
+        x[UCMD] = u[k]
+        x[UEQ] = u_eq[(k + 1) * ns - 1]
+        x[STEP] += 1.0
+        measure(c, x, noise[k], out[k])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _mechanics_substep(c: Constants, x: np.ndarray, f_load: float, h: float) -> None:
-    """Advance piston velocity and position one sub-step (Eq. 14 with Eq. 15-18 friction)."""
-    p1 = x[P1]
-    p2 = x[P2]
-    f_a = c.area * (p1 - p2) - f_load
-    v = x[V]
-    if c.lugre:
+def _mechanics_substep(planes: np.ndarray, f_a: float, p1: float, p2: float, h: float,
+                       mass: float, y_max: float, lugre: bool, sigma0: float, sigma1: float,
+                       y: float, v: float, stuck: float, z: float, friction: float
+                       ) -> tuple[float, float, float, float, float]:
+    """Advance the piston one sub-step (Eq. 14 with Eq. 15-18 friction).
+
+    ``f_a`` [N] is the applied force S (p1 - p2) - F_L at pressures ``p1``, ``p2`` [Pa];
+    ``planes``, ``mass``, ``y_max``, ``lugre``, ``sigma0`` and ``sigma1`` are the fields of
+    :class:`Constants`. From position ``y`` [m], velocity ``v`` [m/s], the stuck flag, the
+    LuGre bristle deflection ``z`` [m] and the friction force [N], returns the new (y, v,
+    stuck, z, friction).
+    """
+    if lugre:
         d = math.copysign(1.0, v) if v != 0.0 else (math.copysign(1.0, f_a) if f_a != 0.0
-                                                     else math.copysign(1.0, x[Z]))
-        f_s, v_s, f_v, f_c = friction_parameters(c.planes, d, p1, p2)
+                                                     else math.copysign(1.0, z))
+        f_s, v_s, f_v, f_c = friction_parameters(planes, d, p1, p2)
         g = abs(stribeck_force(v, f_s, v_s, f_c))
-        a = c.sigma0 * abs(v) / g
-        z = x[Z]
+        a = sigma0 * abs(v) / g
         if a * h < 1e-12:
             z_new = z + h * v
         else:
             z_new = v / a + (z - v / a) * math.exp(-a * h)
         # Bristle force sigma0 z + sigma1 dz/dt with dz/dt = v - a z; v implicit.
-        v_new = (v + h / c.mass * (f_a - c.sigma0 * z_new + c.sigma1 * a * z_new)) / \
-            (1.0 + h * (f_v + c.sigma1) / c.mass)
-        x[Z] = z_new
-        x[FRICTION] = c.sigma0 * z_new + c.sigma1 * (v_new - a * z_new) + f_v * v_new
+        v_new = (v + h / mass * (f_a - sigma0 * z_new + sigma1 * a * z_new)) / \
+            (1.0 + h * (f_v + sigma1) / mass)
+        z = z_new
+        friction = sigma0 * z_new + sigma1 * (v_new - a * z_new) + f_v * v_new
     else:
-        if x[STUCK] != 0.0:
+        if stuck != 0.0:
             d = math.copysign(1.0, f_a)
-            f_s, v_s, f_v, f_c = friction_parameters(c.planes, d, p1, p2)
+            f_s, v_s, f_v, f_c = friction_parameters(planes, d, p1, p2)
             if abs(f_a) <= abs(f_s):
-                x[FRICTION] = f_a
-                x[V] = 0.0
-                return
-            x[STUCK] = 0.0
+                return y, 0.0, stuck, z, f_a
+            stuck = 0.0
             v = 0.0
         else:
             d = math.copysign(1.0, v) if v != 0.0 else math.copysign(1.0, f_a)
-            f_s, v_s, f_v, f_c = friction_parameters(c.planes, d, p1, p2)
+            f_s, v_s, f_v, f_c = friction_parameters(planes, d, p1, p2)
         f_st = stribeck_force(v, f_s, v_s, f_c)
-        v_new = (v + h / c.mass * (f_a - f_st)) / (1.0 + h * f_v / c.mass)
+        v_new = (v + h / mass * (f_a - f_st)) / (1.0 + h * f_v / mass)
         if v_new * d <= 0.0:
             # Velocity reached zero within the step: stick (Eq. 15 decides release next step).
             v_new = 0.0
-            x[STUCK] = 1.0
-            x[FRICTION] = static_friction(f_a, f_s)
+            stuck = 1.0
+            friction = static_friction(f_a, f_s)
         else:
-            x[FRICTION] = f_st + f_v * v_new
-    y = x[Y] + h * v_new
-    if y > c.y_max or y < -c.y_max:
-        y = min(max(y, -c.y_max), c.y_max)
+            friction = f_st + f_v * v_new
+    y = y + h * v_new
+    if y > y_max or y < -y_max:
+        y = min(max(y, -y_max), y_max)
         v_new = 0.0
-        x[STUCK] = 1.0
-    x[Y] = y
-    x[V] = v_new
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _chambers_substep(c: Constants, x: np.ndarray, u_eq: float, h: float) -> None:
-    """Advance both chamber pressures (and gas temperatures) one sub-step (Eq. 11-13)."""
-    p1 = x[P1]
-    p2 = x[P2]
-    q1 = chamber_inflow(c.flow_coef, u_eq, p1, c.p_supply, c.gain_charge, c.gain_discharge)
-    q2 = chamber_inflow(c.flow_coef, -u_eq, p2, c.p_supply, c.gain_charge, c.gain_discharge)
-    q_x = c.leak_cross * (p1 - p2)
-    q1 += -q_x - c.leak_atm * (p1 - P_ATM)
-    q2 += q_x - c.leak_atm * (p2 - P_ATM)
-    if c.orifice_cross > 0.0 or c.orifice_atm > 0.0:
-        t_up = x[T1] if p1 > p2 else x[T2]
-        q_x = orifice_flow(c.orifice_cross, p1, p2, c.r_gas * t_up)
-        q1 += -q_x - orifice_flow(c.orifice_atm, p1, P_ATM, c.r_gas * x[T1])
-        q2 += q_x - orifice_flow(c.orifice_atm, p2, P_ATM, c.r_gas * x[T2])
-    vol1, vol2 = chamber_volumes(x[Y], c.area, c.v01, c.v02)
-    if c.heat_transfer > 0.0:
-        dvol = c.area * x[V]
-        dp1, dt1 = pressure_temperature_rates(q1, p1, x[T1], dvol, vol1, c.r_gas, c.t_wall,
-                                              GAMMA_AIR, c.heat_transfer)
-        dp2, dt2 = pressure_temperature_rates(q2, p2, x[T2], -dvol, vol2, c.r_gas, c.t_wall,
-                                              GAMMA_AIR, c.heat_transfer)
-        x[T1] = max(x[T1] + h * dt1, 1.0)
-        x[T2] = max(x[T2] + h * dt2, 1.0)
-    else:
-        dp1, dp2 = pressure_rates(q1, q2, p1, p2, x[V], vol1, vol2, c.area, c.rt, c.polytropic)
-    x[P1] = max(p1 + h * dp1, MIN_PRESSURE)
-    x[P2] = max(p2 + h * dp2, MIN_PRESSURE)
+        stuck = 1.0
+    return y, v_new, stuck, z, friction
 
 
 @njit(cache=True, error_model="numpy")
@@ -251,49 +341,18 @@ def advance(c: Constants, x: np.ndarray, ring: np.ndarray, u: np.ndarray, f_load
     the prescribed position [m] and velocity [m/s] (then moves at that velocity, friction not
     computed) and/or holds the prescribed pressures [Pa]. Non-finite commands must be filtered
     by the caller.
+
+    Each block of :data:`BLOCK` samples runs in two passes: the valve chain over all its
+    sub-steps (:func:`_valve_pass`), then chambers and piston (:func:`_physics_pass`).
     """
-    h = c.dt / c.substeps
-    nv = c.valve_b.shape[0]
-    xv = x[VALVE:VALVE + nv].copy()
-    tmp = np.empty(nv)
-    play = x[PLAY:PLAY + MAX_PLAY].copy()
-    head = int(x[HEAD])
-    driven = drive.shape[0] > 0
-    for k in range(u.shape[0]):
-        u_k = min(max(u[k], -c.u_limit), c.u_limit)
-        x[UCMD] = u_k
-        fl = f_load[k]
-        move = not c.locked
-        pressurise = not c.regulated
-        if driven:
-            if math.isfinite(drive[k, DRIVE_Y]):
-                x[Y] = drive[k, DRIVE_Y]
-                x[V] = drive[k, DRIVE_V]
-                x[FRICTION] = 0.0
-                move = False
-            if math.isfinite(drive[k, DRIVE_P1]):
-                x[P1] = drive[k, DRIVE_P1]
-                x[P2] = drive[k, DRIVE_P2]
-                pressurise = False
-        for _ in range(c.substeps):
-            u_eq = _valve_substep(c, xv, tmp, ring, head, u_k, play)
-            head = (head + 1) % ring.shape[0]
-            x[UEQ] = u_eq
-            if pressurise:
-                _chambers_substep(c, x, u_eq, h)
-            if move:
-                _mechanics_substep(c, x, fl, h)
-            elif c.locked:
-                x[V] = 0.0
-                x[FRICTION] = 0.0
-            else:
-                x[Y] = min(max(x[Y] + h * x[V], -c.y_max), c.y_max)
-            if c.sensor_tau > 0.0:
-                w = 1.0 - math.exp(-h / c.sensor_tau)
-                x[PS1] += w * (x[P1] - x[PS1])
-                x[PS2] += w * (x[P2] - x[PS2])
-        x[STEP] += 1.0
-        measure(c, x, noise[k], out[k])
-    x[VALVE:VALVE + nv] = xv
-    x[PLAY:PLAY + MAX_PLAY] = play
-    x[HEAD] = head
+    n = u.shape[0]
+    u_clip = np.empty(min(n, BLOCK))
+    u_eq = np.empty(min(n, BLOCK) * c.substeps)
+    for first in range(0, n, BLOCK):
+        last = min(first + BLOCK, n)
+        for k in range(first, last):
+            u_clip[k - first] = min(max(u[k], -c.u_limit), c.u_limit)
+        _valve_pass(c, x, ring, u_clip[:last - first], u_eq)
+        # An empty drive slices to an empty drive.
+        _physics_pass(c, x, u_clip[:last - first], u_eq, f_load[first:last], drive[first:last],
+                      noise[first:last], out[first:last])

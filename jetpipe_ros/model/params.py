@@ -297,14 +297,16 @@ class ModelParams(Mapping[str, Any]):
     """A complete, validated set of model parameters, read like a dict by dotted name."""
 
     def __init__(self, overrides: Mapping[str, Any] | None = None, where: str = "") -> None:
-        values = {name: spec.default for name, spec in SPECS.items()}
-        for name, value in (overrides or {}).items():
+        self._values = {name: spec.default for name, spec in SPECS.items()}
+        self._set(overrides or {}, where)
+
+    def _set(self, changes: Mapping[str, Any], where: str) -> None:
+        for name, value in changes.items():
             spec = SPECS.get(name)
             if spec is None:
                 raise ParameterError(_unknown_message(name, where))
-            values[name] = check_value(spec, value, where)
-        _check_geometry(values, where)
-        self._values = values
+            self._values[name] = check_value(spec, value, where)
+        _check_geometry(self._values, where)
 
     def __getitem__(self, name: str) -> Any:
         return self._values[name]
@@ -321,8 +323,12 @@ class ModelParams(Mapping[str, Any]):
 
     def with_values(self, changes: Mapping[str, Any]) -> ModelParams:
         """A copy with the given dotted-name parameters changed (validated)."""
-        merged = {**self._values, **changes}
-        return ModelParams(merged)
+        copy = ModelParams.__new__(ModelParams)
+        # Only the changes need checking: this set's values passed already.
+        copy._values = {name: list(value) if isinstance(value, list) else value
+                        for name, value in self._values.items()}
+        copy._set(changes, "")
+        return copy
 
     def with_effect(self, effect: str, **params: float) -> ModelParams:
         """A copy with ``effect`` switched on and its parameters set."""

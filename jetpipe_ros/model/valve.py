@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -92,7 +93,26 @@ class DiscreteValve:
 
 def discretise_valve(p: Mapping[str, Any], h: float, extra_lag_hz: float | None = None,
                      extra_delay: float = 0.0) -> DiscreteValve:
-    """Discretise the valve chain at sub-step ``h`` [s]; the delay is rounded to whole sub-steps."""
+    """Discretise the valve chain at sub-step ``h`` [s]; the delay is rounded to whole sub-steps.
+
+    The result is cached by the chain's parameters and the arguments, so models that differ
+    elsewhere (an experiment's initial state, a chamber or friction parameter) share one
+    discretisation: treat its arrays as read-only.
+    """
+    values = tuple(p[name] for name in _CHAIN_PARAMS)
+    return _discretise(values, h, extra_lag_hz, extra_delay)
+
+
+#: The parameters the discretised chain depends on (Eq. 4, 9, 10).
+_CHAIN_PARAMS = ("valve.torque_constant", "valve.back_emf_constant", "valve.coil_resistance",
+                 "valve.coil_inductance", "valve.rotor_inertia", "valve.friction_coefficient",
+                 "valve.magnetic_stiffness", "valve.lag_zero", "valve.lag_pole", "valve.delay")
+
+
+@lru_cache(maxsize=64)
+def _discretise(values: tuple[float, ...], h: float, extra_lag_hz: float | None,
+                extra_delay: float) -> DiscreteValve:
+    p = dict(zip(_CHAIN_PARAMS, values))
     num, den = valve_tf(p, extra_lag_hz)
     a, b, c, d = signal.tf2ss(num, den)
     ad, bd, cd, dd, _ = signal.cont2discrete((a, b, c, d), h, method="zoh")

@@ -1,0 +1,61 @@
+"""The integration kernel: valve pass and physics pass by blocks, the same bits in any pieces."""
+
+import numpy as np
+import pytest
+
+from jetpipe_ros.model import Actuator, ModelParams, kernel
+
+P = ModelParams()
+EFFECTS = {
+    "nominal": {},
+    "valve chain and LuGre, noisy": {"effects.friction_dynamics.enabled": True,
+                                     "effects.valve_lag.enabled": True,
+                                     "effects.valve_delay.enabled": True,
+                                     "effects.valve_hysteresis.enabled": True,
+                                     "sensors.noise": True},
+    "heat transfer, orifice leaks, sensor lag": {"effects.thermal.enabled": True,
+                                                  "effects.thermal.form": "heat_transfer",
+                                                  "effects.leakage.enabled": True,
+                                                  "effects.leakage.form": "orifice",
+                                                  "effects.sensor_dynamics.enabled": True},
+    "three sub-steps": {"integration.substeps": 3},
+}
+
+
+def command(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A rich command [V], a load [N] and a drive holding both subsystems now and then."""
+    rng = np.random.default_rng(11)
+    t = np.arange(n) * 1e-3
+    u = 0.8 * np.sign(np.sin(2 * np.pi * 0.7 * t)) + 0.3 * np.sin(2 * np.pi * 9 * t) \
+        + np.repeat(rng.uniform(-1.5, 1.5, n // 100 + 1), 100)[:n]
+    f_load = np.repeat(rng.uniform(-150, 150, n // 250 + 1), 250)[:n]
+    drive = np.full((n, kernel.N_DRIVE), np.nan)
+    held = (np.arange(n) % 700) < 40
+    drive[held, kernel.DRIVE_Y] = 0.004
+    drive[held, kernel.DRIVE_V] = 0.0
+    drive[held, kernel.DRIVE_P1] = 3.0e5
+    drive[held, kernel.DRIVE_P2] = 5.0e5
+    return u, f_load, drive
+
+
+@pytest.mark.parametrize("changes", EFFECTS.values(), ids=EFFECTS.keys())
+def test_any_split_into_calls_gives_the_same_bits(changes):
+    """Blocks of kernel.BLOCK samples and calls of any length (the node steps one sample at a
+    time, the diagnosis runs whole experiments) carry the valve, delay line, hysteresis and
+    physics state across the same way."""
+    u, f_load, drive = command(1500)
+    whole = Actuator(ModelParams(changes)).run(u, f_load, drive)
+    act = Actuator(ModelParams(changes))
+    pieces, k = [], 0
+    for size in [1, kernel.BLOCK - 1, kernel.BLOCK, kernel.BLOCK + 1, 2, 300, 7] * 10:
+        if k < u.size:
+            pieces.append(act.run(u[k:k + size], f_load[k:k + size], drive[k:k + size]))
+            k += size
+    np.testing.assert_array_equal(np.concatenate(pieces), whole)
+
+
+def test_valve_chain_with_every_effect_fits_the_kernel():
+    """Eq. 4 (third order), Eq. 9 (lead-lag) and the valve_lag effect: the padded chain's size."""
+    c = Actuator(P.with_values({"effects.valve_lag.enabled": True})).constants
+    assert c.valve_b.shape[0] == kernel.VALVE_ORDER
+    assert Actuator(P).constants.valve_b.shape[0] == kernel.VALVE_ORDER - 1
