@@ -41,8 +41,10 @@ class Knob:
         """Map z in [0, 1] onto the range."""
         z = min(max(z, 0.0), 1.0)
         if self.log:
-            return float(math.exp(math.log(self.low) + z * math.log(self.high / self.low)))
-        return float(self.low + z * (self.high - self.low))
+            value = math.exp(math.log(self.low) + z * math.log(self.high / self.low))
+        else:
+            value = self.low + z * (self.high - self.low)
+        return float(min(max(value, self.low), self.high))  # no round-off past a bound
 
     def to_unit(self, value: float) -> float:
         """Map a value in the range onto [0, 1]."""

@@ -37,7 +37,8 @@ from jetpipe_ros.diagnosis.data import SIGNALS, Prepared, prepare, swapped
 from jetpipe_ros.diagnosis.fit import BUDGET, Fit
 from jetpipe_ros.diagnosis.jobs import Fitter, Job
 from jetpipe_ros.diagnosis.localize import by_regime, frequency_response, position_error_pct
-from jetpipe_ros.diagnosis.noise_floor import calibrate
+from jetpipe_ros.diagnosis import residuals
+from jetpipe_ros.diagnosis.noise_floor import calibrate, twin
 from jetpipe_ros.diagnosis.prediction import HORIZON, predict
 from jetpipe_ros.diagnosis.score import METRIC, predict_all, score, window_errors
 from jetpipe_ros.diagnosis.verdict import (Ranked, Settled, decide, needs_pairs,
@@ -296,10 +297,12 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
     progress("scoring the augmented model")
     final = settled.final
     augmented = final.params if final is not None else nominal
+    progress("equation errors of the augmented model, against its noise twin")
+    stroke = nominal["mechanics.stroke"]
+    equations = residuals.locate(prepared, twin(prepared, augmented), augmented, stroke)
     aug_all = predict_all(augmented, prepared, None) if final is not None else nom_all
     aug_hold = score(prepared, aug_all, "holdout")
     preds = {"nominal": nom_all, "augmented": aug_all}
-    stroke = nominal["mechanics.stroke"]
     localization = {
         "metric": METRIC, "horizon_s": HORIZON,
         "signals": {"nominal": nom_hold.to_json(), "augmented": aug_hold.to_json(),
@@ -307,6 +310,7 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
         "subsystems": subsystems,
         "regimes": by_regime(prepared, preds, "holdout", stroke),
         "frequency": frequency_response(prepared, preds),
+        "equations": equations,
     }
     verdict = settled.verdict
     separating = None
@@ -324,6 +328,16 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
              f"(confidence {result['verdict']['confidence']:.2f}); "
              f"{result['verdict']['reason']}")
     return result
+
+
+def _subsystem_of(localization: dict) -> str:
+    """With no equation beyond noise: the subsystem whose replay with measured inputs (valve
+    and chambers driven by the measured motion, mechanics by the measured pressures) leaves the
+    larger gap."""
+    sub = localization["subsystems"]
+    chambers = sub["valve_and_chambers"]["gap"]
+    mechanics = sub["mechanics"]["gap"] if sub["mechanics"] else 0.0
+    return "mechanics" if mechanics > chambers else "valve+chamber"
 
 
 def _forms(win: Ranked, ranking: Sequence[Ranked]) -> dict:
@@ -376,16 +390,26 @@ def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
     win = verdict.winner
     effects = list(win.fit.effect_names) if win else []
     values = win.fit.effect_values() if win else {}
+    missing = localization["equations"]["missing"] if settled.unlisted else None
+    subsystem = ("+".join(dict.fromkeys(EFFECTS[e] for e in effects)) if win else
+                 (missing["subsystem"] if missing else _subsystem_of(localization))
+                 if settled.unlisted else "none")
+    reason = settled.reason
+    if settled.unlisted:
+        reason += f"; {residuals.describe(localization['equations'])}"
     verdict_json = {
-        "effect": win.fit.effect if win else "none",
+        "effect": win.fit.effect if win else "unlisted" if settled.unlisted else "none",
         "effects": effects,
         "forms": win.fit.forms if win else {},
         "candidate": win.fit.name if win else None,
         "form_comparison": _forms(win, ranking) if win else {},
-        "subsystem": "+".join(dict.fromkeys(EFFECTS[e] for e in effects)) if win else "none",
+        "subsystem": subsystem,
         "params": (values[effects[0]] if len(effects) == 1 else values) if win else {},
         "confidence": verdict.confidence,
-        "reason": settled.reason,
+        "reason": reason,
+        "missing": missing,
+        "partial": ({"candidate": verdict.partial.fit.name,
+                     "shrinkage": verdict.partial.shrinkage} if verdict.partial else None),
         "effect_reason": verdict.reason,
         "ambiguous_with": verdict.runner_up.fit.effect if verdict.ambiguous else None,
         "alternative": ({"explanation": settled.alternative.fit.effect

@@ -5,17 +5,20 @@ When no candidate explains a gap, the missing physics is located by asking each 
 (recalibrated) model what it leaves over, sample by sample, with every state taken from the
 measurements (smoothed, zero phase) rather than simulated:
 
-- **chamber 1 and chamber 2 mass balance** (Eq. 8, 11-13 with the model's effects): the measured
-  pressure rate against the model's rate at the measured pressures, position, velocity and the
-  equivalent valve voltage the model's valve chain makes of the recorded command; expressed as an
-  equivalent mass flow into the chamber [kg/s] (rate error x V / (r T));
+- **chamber 1 and chamber 2 mass balance** (Eq. 8, 11-13 with the model's effects, the rates
+  the kernel integrates: :func:`kernel.chamber_rates`): the measured pressure rate against the
+  model's rate at the measured pressures, position, velocity and the equivalent valve voltage
+  the model's valve chain makes of the recorded command (the gas taken at the wall temperature,
+  which is not measured); expressed as an equivalent mass flow into the chamber [kg/s] (rate
+  error x V / (r T));
 - **force balance** (Eq. 14 with Eq. 15-18) while the piston slides: the measured acceleration
   times the mass against the pneumatic force, the load and the friction at the measured states
   [N].
 
-Each equation error is compared with the same error on the noise twin of the dataset (the model
-itself re-measured with the sensor noise, :mod:`noise_floor`): the ratio of their RMS says which
-equation holds a gap beyond noise. The error is then regressed on a small library of terms that
+Errors and terms are averaged over 50-ms blocks (the noise of the derivatives falls, the missing
+physics stays), and each equation error is compared with the same error on the noise twin of the
+dataset (the model itself re-measured with the sensor noise, :mod:`noise_floor`): the ratio of
+their RMS says which equation holds a gap beyond noise. The error is then regressed on a small library of terms that
 each name a physical shape and the subsystem it belongs to (a constant, an offset in the valve
 command, a flow gain that changes with chamber pressure, a leak across the piston or to
 atmosphere, a force near the end stops, ...), with a sparse linear model whose number of terms
@@ -45,9 +48,13 @@ SLIDING = 5e-3
 WINDOW = 0.021
 #: End-stop zone of the library's cushion terms: the last 3 mm of stroke [m].
 CUSHION = 3e-3
-#: An equation error whose RMS exceeds the noise twin's by this factor holds a gap: twice the
-#: noise's RMS, i.e. a systematic part at least sqrt(3) times the noise.
-BEYOND_NOISE = 2.0
+#: Errors and library terms are averaged over blocks of this length [s] before they are
+#: compared and regressed: sensor noise (white, through the derivatives) falls as
+#: 1/sqrt(samples per block) while the physics the model misses, slower than 50 ms, stays.
+BLOCK = 0.05
+#: An equation error whose blocked RMS exceeds the noise twin's by this factor holds a gap: a
+#: systematic part at least as large as the noise left in it (sqrt(1 + 1)).
+BEYOND_NOISE = float(np.sqrt(2.0))
 #: Library terms that carry less than this share of an error's variance are not described.
 LEAST_SHARE = 0.1
 
@@ -119,7 +126,7 @@ def chamber_errors(params: ModelParams, rec: Record, dt: float) -> tuple[np.ndar
     p1, p2 = rec.smooth["p1"], rec.smooth["p2"]
     dp1 = _derivative(rec.p1, dt, 1)
     dp2 = _derivative(rec.p2, dt, 1)
-    rates = kernel.chamber_rates_array(c, p1, p2, y, v, u_eq)
+    rates = kernel.chamber_rates(c, y, v, p1, p2, u_eq)
     vol1, vol2 = chamber_volumes(y, c.area, c.v01, c.v02)
     e1 = (dp1 - rates[0]) * vol1 / c.rt
     e2 = (dp2 - rates[1]) * vol2 / c.rt
@@ -142,7 +149,7 @@ def force_error(params: ModelParams, rec: Record, dt: float) -> tuple[np.ndarray
     return err, sliding
 
 
-def _chamber_terms(i: int, p: np.ndarray, p_other: np.ndarray, q: np.ndarray,
+def _chamber_terms(i: int, p: np.ndarray, p_other: np.ndarray, dp: np.ndarray, q: np.ndarray,
                    dqdu: np.ndarray, u_eq: np.ndarray, v: np.ndarray, area: float,
                    rt: float, p_supply: float) -> list[Term]:
     sign = 1.0 if i == 1 else -1.0
@@ -164,6 +171,8 @@ def _chamber_terms(i: int, p: np.ndarray, p_other: np.ndarray, q: np.ndarray,
              "chamber", -(p - p_other) * 1e-10),
         Term("compression", f"a term with the volume change of chamber {i} (non-isothermal "
              f"gas)", "chamber", -sign * area * p * v / rt),
+        Term("dead volume", f"a term with chamber {i}'s pressure rate (its volume, or the gas "
+             f"stiffness, other than the model's)", "chamber", dp / rt),
     ]
 
 
@@ -184,34 +193,47 @@ def _force_terms(y: np.ndarray, v: np.ndarray, a: np.ndarray, dp: np.ndarray, ar
     ]
 
 
+def _blocks(x: np.ndarray, n: int) -> np.ndarray:
+    """Means of consecutive blocks of ``n`` samples (a trailing partial block dropped)."""
+    m = x.size // n
+    return x[:m * n].reshape(m, n).mean(axis=1) if m else x[:0].astype(float)
+
+
 def equation_errors(prepared: Prepared, params: ModelParams,
                     stroke: float) -> list[EquationError]:
-    """The three equation errors over all experiments, with their libraries and regimes."""
+    """The three equation errors over all experiments, averaged over :data:`BLOCK`-long blocks,
+    with their libraries and regimes (a block is in a regime when most of its samples are)."""
     parts: dict[str, dict[str, list]] = {e: {"err": [], "terms": [], "reg": []}
                                          for e in EQUATIONS}
     c = build_constants(params)
     dt = prepared.dt
+    n = max(int(round(BLOCK / dt)), 1)
+
+    def add(eq: str, err: np.ndarray, terms: list[Term], reg: dict, keep: np.ndarray) -> None:
+        d = parts[eq]
+        d["err"].append(_blocks(err[keep], n))
+        d["terms"].append([Term(t.name, t.meaning, t.subsystem, _blocks(t.values[keep], n))
+                           for t in terms])
+        d["reg"].append({k: _blocks(m[keep].astype(float), n) > 0.5 for k, m in reg.items()})
+
     for rec in prepared.records:
         reg = regimes(rec, dt, stroke)
+        everywhere = np.ones(rec.t.size, dtype=bool)
         if not rec.regulated:
             e1, e2, q1, q2, g1, g2, u_eq = chamber_errors(params, rec, dt)
             p1, p2 = rec.smooth["p1"], rec.smooth["p2"]
-            for i, e, p, po, q, g in ((1, e1, p1, p2, q1, g1), (2, e2, p2, p1, q2, g2)):
-                d = parts[EQUATIONS[i - 1]]
-                d["err"].append(e)
-                d["terms"].append(_chamber_terms(i, p, po, q, g, u_eq, rec.v, c.area, c.rt,
-                                                 c.p_supply))
-                d["reg"].append(reg)
+            dp1, dp2 = _derivative(rec.p1, dt, 1), _derivative(rec.p2, dt, 1)
+            for i, e, p, po, dp, q, g in ((1, e1, p1, p2, dp1, q1, g1),
+                                          (2, e2, p2, p1, dp2, q2, g2)):
+                add(EQUATIONS[i - 1], e, _chamber_terms(i, p, po, dp, q, g, u_eq, rec.v,
+                                                        c.area, c.rt, c.p_supply), reg,
+                    everywhere)
         if not rec.locked:
             err, sliding = force_error(params, rec, dt)
             a = _derivative(rec.y, dt, 2)
-            terms = _force_terms(rec.smooth["y"], rec.v, a,
-                                 rec.smooth["p1"] - rec.smooth["p2"], c.area, c.y_max)
-            d = parts["force balance"]
-            d["err"].append(err[sliding])
-            d["terms"].append([Term(t.name, t.meaning, t.subsystem, t.values[sliding])
-                               for t in terms])
-            d["reg"].append({k: m[sliding] for k, m in reg.items()})
+            add("force balance", err, _force_terms(rec.smooth["y"], rec.v, a,
+                                                   rec.smooth["p1"] - rec.smooth["p2"],
+                                                   c.area, c.y_max), reg, sliding)
     out = []
     for eq, d in parts.items():
         if not d["err"]:
@@ -227,31 +249,33 @@ def equation_errors(prepared: Prepared, params: ModelParams,
 
 
 def sparse_terms(err: EquationError) -> list[dict]:
-    """The library terms that carry the error (sparse regression, BIC), with their share of
-    its variance, best first."""
-    if err.error.size < 50:
+    """The library terms that carry the error (sparse regression, terms chosen by BIC), each
+    with the share of the error's mean square it explains alone (its squared correlation with
+    the error; the constant: the squared mean), best first."""
+    if err.error.size < 20:
         return []
     x = np.column_stack([t.values for t in err.terms])
     scale = x.std(axis=0)
     keep = scale > 0
     xs = (x[:, keep] - x[:, keep].mean(axis=0)) / scale[keep]
-    const = [t for t, k in zip(err.terms, keep) if not k]
-    y = err.error - err.error.mean()
+    terms = [t for t, k in zip(err.terms, keep) if k]
+    e = err.error
+    y = e - e.mean()
     model = LassoLarsIC(criterion="bic").fit(xs, y)
-    total = float(np.sum(y ** 2)) or 1.0
+    total = float(np.mean(e ** 2)) or 1.0
     rows = []
-    for coef, term in zip(model.coef_, [t for t, k in zip(err.terms, keep) if k]):
-        if coef == 0.0:
-            continue
-        col = (term.values - term.values.mean()) / term.values.std()
-        share = float(np.sum((coef * col) ** 2) / total)
-        rows.append({"term": term.name, "meaning": term.meaning, "subsystem": term.subsystem,
-                     "coefficient": float(coef / term.values.std()), "share": share})
-    mean = float(err.error.mean())
-    if const and abs(mean) > 0 and mean ** 2 >= LEAST_SHARE * float(np.mean(err.error ** 2)):
-        rows.append({"term": const[0].name, "meaning": const[0].meaning,
-                     "subsystem": const[0].subsystem, "coefficient": mean,
-                     "share": mean ** 2 / float(np.mean(err.error ** 2))})
+    for coef, col, term in zip(model.coef_, xs.T, terms):
+        if coef != 0.0:
+            rows.append({"term": term.name, "meaning": term.meaning,
+                         "subsystem": term.subsystem,
+                         "coefficient": float(coef / term.values.std()),
+                         "share": float(np.mean(col * y) ** 2 / np.mean(y ** 2)
+                                        * np.mean(y ** 2) / total)})
+    const = next((t for t, k in zip(err.terms, keep) if not k), None)
+    if const is not None:  # the constant term: the error's mean
+        rows.append({"term": const.name, "meaning": const.meaning,
+                     "subsystem": const.subsystem, "coefficient": float(e.mean()),
+                     "share": float(e.mean() ** 2 / total)})
     return sorted((r for r in rows if r["share"] >= LEAST_SHARE), key=lambda r: -r["share"])
 
 
@@ -259,7 +283,7 @@ def worst_regime(err: EquationError) -> tuple[str, float] | None:
     """The regime where the error's RMS is largest relative to its RMS overall."""
     best = None
     for name, mask in err.regime.items():
-        if mask.sum() < 100:
+        if mask.sum() < 10:
             continue
         ratio = float(np.sqrt(np.mean(err.error[mask] ** 2))) / max(err.rms, 1e-300)
         if best is None or ratio > best[1]:

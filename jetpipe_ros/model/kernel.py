@@ -188,6 +188,66 @@ def _valve_pass(c: Constants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
     x[HEAD] = head
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _chamber_rates(coef: np.ndarray, p_supply: float, gain_charge: float, gain_discharge: float,
+                   leak_cross: float, leak_atm: float, orifice_cross: float, orifice_atm: float,
+                   r_gas: float, t_wall: float, rt: float, area: float, v01: float, v02: float,
+                   polytropic: float, heat_transfer: float, y: float, v: float, p1: float,
+                   p2: float, t1: float, t2: float, u_eq: float
+                   ) -> tuple[float, float, float, float]:
+    """dp1/dt, dp2/dt [Pa/s] and dT1/dt, dT2/dt [K/s] (0 without the heat-transfer form) at
+    one state: the flow map, the leaks, the volumes and the pressure (and gas temperature)
+    rates, with the effects the arguments switch on (see :class:`Constants`)."""
+    q1 = chamber_inflow(coef, u_eq, p1, p_supply, gain_charge, gain_discharge)
+    q2 = chamber_inflow(coef, -u_eq, p2, p_supply, gain_charge, gain_discharge)
+    q_x = leak_cross * (p1 - p2)
+    q1 += -q_x - leak_atm * (p1 - P_ATM)
+    q2 += q_x - leak_atm * (p2 - P_ATM)
+    if orifice_cross > 0.0 or orifice_atm > 0.0:
+        t_up = t1 if p1 > p2 else t2
+        q_x = orifice_flow(orifice_cross, p1, p2, r_gas * t_up)
+        q1 += -q_x - orifice_flow(orifice_atm, p1, P_ATM, r_gas * t1)
+        q2 += q_x - orifice_flow(orifice_atm, p2, P_ATM, r_gas * t2)
+    vol1, vol2 = chamber_volumes(y, area, v01, v02)
+    if heat_transfer > 0.0:
+        dvol = area * v
+        dp1, dt1 = pressure_temperature_rates(q1, p1, t1, dvol, vol1, r_gas, t_wall, GAMMA_AIR,
+                                              heat_transfer)
+        dp2, dt2 = pressure_temperature_rates(q2, p2, t2, -dvol, vol2, r_gas, t_wall,
+                                              GAMMA_AIR, heat_transfer)
+        return dp1, dp2, dt1, dt2
+    dp1, dp2 = pressure_rates(q1, q2, p1, p2, v, vol1, vol2, area, rt, polytropic)
+    return dp1, dp2, 0.0, 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def chamber_rates(c: Constants, y: np.ndarray, v: np.ndarray, p1: np.ndarray, p2: np.ndarray,
+                  u_eq: np.ndarray) -> np.ndarray:
+    """What the model's chambers do at given states, sample by sample: rows dp1/dt, dp2/dt
+    [Pa/s] (the gas at the wall temperature), the valve's inflows q1, q2 [kg/s] and their
+    sensitivities to the equivalent voltage dq1/du_eq, dq2/du_eq [kg/(s V)]. For equation
+    errors (the diagnosis): the same rates the kernel integrates."""
+    n = y.shape[0]
+    out = np.empty((6, n))
+    du = 1e-3
+    for k in range(n):
+        out[0, k], out[1, k], _, _ = _chamber_rates(
+            c.flow_coef, c.p_supply, c.gain_charge, c.gain_discharge, c.leak_cross, c.leak_atm,
+            c.orifice_cross, c.orifice_atm, c.r_gas, c.t_wall, c.rt, c.area, c.v01, c.v02,
+            c.polytropic, c.heat_transfer, y[k], v[k], p1[k], p2[k], c.t_wall, c.t_wall,
+            u_eq[k])
+        for i, (sign, p) in enumerate(((1.0, p1[k]), (-1.0, p2[k]))):
+            u = sign * u_eq[k]
+            out[2 + i, k] = chamber_inflow(c.flow_coef, u, p, c.p_supply, c.gain_charge,
+                                           c.gain_discharge)
+            out[4 + i, k] = sign * (
+                chamber_inflow(c.flow_coef, u + du, p, c.p_supply, c.gain_charge,
+                               c.gain_discharge)
+                - chamber_inflow(c.flow_coef, u - du, p, c.p_supply, c.gain_charge,
+                                 c.gain_discharge)) / (2.0 * du)
+    return out
+
+
 @njit(cache=True, error_model="numpy")
 def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
                   f_load: np.ndarray, drive: np.ndarray, noise: np.ndarray, out: np.ndarray
@@ -227,30 +287,14 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
             if pressurise:
                 # Chambers (Eq. 11-13): flow map, leakage, volumes, pressure (and gas
                 # temperature) rates; explicit.
-                q1 = chamber_inflow(coef, u_eq[s], p1, c.p_supply, c.gain_charge,
-                                    c.gain_discharge)
-                q2 = chamber_inflow(coef, -u_eq[s], p2, c.p_supply, c.gain_charge,
-                                    c.gain_discharge)
-                q_x = c.leak_cross * (p1 - p2)
-                q1 += -q_x - c.leak_atm * (p1 - P_ATM)
-                q2 += q_x - c.leak_atm * (p2 - P_ATM)
-                if c.orifice_cross > 0.0 or c.orifice_atm > 0.0:
-                    t_up = t1 if p1 > p2 else t2
-                    q_x = orifice_flow(c.orifice_cross, p1, p2, c.r_gas * t_up)
-                    q1 += -q_x - orifice_flow(c.orifice_atm, p1, P_ATM, c.r_gas * t1)
-                    q2 += q_x - orifice_flow(c.orifice_atm, p2, P_ATM, c.r_gas * t2)
-                vol1, vol2 = chamber_volumes(y, c.area, c.v01, c.v02)
+                dp1, dp2, dt1, dt2 = _chamber_rates(
+                    coef, c.p_supply, c.gain_charge, c.gain_discharge, c.leak_cross,
+                    c.leak_atm, c.orifice_cross, c.orifice_atm, c.r_gas, c.t_wall, c.rt,
+                    c.area, c.v01, c.v02, c.polytropic, c.heat_transfer, y, v, p1, p2, t1, t2,
+                    u_eq[s])
                 if c.heat_transfer > 0.0:
-                    dvol = c.area * v
-                    dp1, dt1 = pressure_temperature_rates(q1, p1, t1, dvol, vol1, c.r_gas,
-                                                          c.t_wall, GAMMA_AIR, c.heat_transfer)
-                    dp2, dt2 = pressure_temperature_rates(q2, p2, t2, -dvol, vol2, c.r_gas,
-                                                          c.t_wall, GAMMA_AIR, c.heat_transfer)
                     t1 = max(t1 + h * dt1, 1.0)
                     t2 = max(t2 + h * dt2, 1.0)
-                else:
-                    dp1, dp2 = pressure_rates(q1, q2, p1, p2, v, vol1, vol2, c.area, c.rt,
-                                              c.polytropic)
                 p1 = max(p1 + h * dp1, MIN_PRESSURE)
                 p2 = max(p2 + h * dp2, MIN_PRESSURE)
             if move:
