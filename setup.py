@@ -18,7 +18,7 @@ setup(
     ],
     # rclpy and the ROS messages come from the ROS install or requirements-ros.txt.
     install_requires=["numpy", "scipy", "numba", "pyyaml", "matplotlib", "rosbags",
-                      "threadpoolctl"],
+                      "threadpoolctl", "scikit-learn"],
     python_requires=">=3.10",
     zip_safe=True,
     maintainer="jetpipe_ros developers",
