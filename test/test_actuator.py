@@ -113,6 +113,17 @@ def test_step_by_step_equals_batch():
     np.testing.assert_array_equal(batch, stepped)
 
 
+def test_reconfigure_keeps_the_state():
+    act = Actuator()
+    act.run(np.full(200, 1.0))
+    before = act.state.copy()
+    act.reconfigure({"mechanics.locked": True})
+    assert np.array_equal(act.state, before) and act.constants.locked
+    y = act.state[0]
+    act.run(np.full(200, -1.0))
+    assert act.state[0] == y  # clamped where it was
+
+
 def test_sensor_noise_is_seeded_and_sized():
     noisy = P.with_values({"sensors.noise": True, "sensors.seed": 7})
     a = simulate(noisy, np.zeros(4000))

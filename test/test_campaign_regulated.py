@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from jetpipe_ros.campaign import CampaignError, load_campaign, parse_campaign, reconfigure
+from jetpipe_ros.campaign import CampaignError, load_campaign, parse_campaign
 from jetpipe_ros.campaign import run_campaign_offline, signals
 from jetpipe_ros.campaign.plan import AREA
 from jetpipe_ros.dataset import read_dataset
@@ -76,12 +76,12 @@ def test_bad_regulated_experiments_name_experiment_and_field(change, message):
 def test_regulators_set_the_pressures_and_place_the_piston():
     act = Actuator()
     act.run(np.full(300, 1.0))
-    reconfigure(act, {"chamber.regulated": True, "chamber.initial_pressure_1": 2.0e5,
-                      "chamber.initial_pressure_2": 9.0e5, "mechanics.initial_position": 0.025})
+    act.reconfigure({"chamber.regulated": True, "chamber.initial_pressure_1": 2.0e5,
+                     "chamber.initial_pressure_2": 9.0e5, "mechanics.initial_position": 0.025})
     out = act.run(np.full(500, 3.0), AREA * (2.0e5 - 9.0e5))  # the valve is irrelevant
     assert np.all(out[:, 4] == 2.0e5) and np.all(out[:, 5] == 9.0e5)
     assert np.all(out[:, 2] == 0.025)  # held at the stop by the balancing load
-    reconfigure(act, {"chamber.regulated": False})  # regulators off: the state carries over
+    act.reconfigure({"chamber.regulated": False})  # regulators off: the state carries over
     assert act.state[2] == 2.0e5 and act.state[0] == 0.025
 
 

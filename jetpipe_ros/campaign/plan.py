@@ -198,7 +198,7 @@ class Phase:
     def rig(self) -> dict[str, Any]:
         """The test rig's model parameters over the phase: piston clamp, regulators and, when
         regulated, their pressures [Pa] and the piston's place [m] (applied with
-        :func:`~jetpipe_ros.campaign.rig.reconfigure` or the simulator's parameters)."""
+        :meth:`~jetpipe_ros.model.Actuator.reconfigure` or the simulator's parameters)."""
         out: dict[str, Any] = {"mechanics.locked": self.locked,
                                "chamber.regulated": self.regulated is not None}
         if self.regulated is not None:

@@ -50,7 +50,6 @@ from rclpy.parameter import Parameter
 from rclpy.time import Time
 from rclpy.time_source import TimeSource
 
-from jetpipe_ros.campaign.rig import reconfigure
 from jetpipe_ros.model import SPECS, Actuator, ModelParams, ParameterError
 from jetpipe_ros.model import kernel as k
 from jetpipe_ros.model.params import NODE_NAME, ParamSpec, check_value
@@ -227,7 +226,7 @@ class ActuatorSim(Node):
     def _apply_update(self, params: list[Parameter[Any]]) -> None:
         model = {p.name: _plain(p.value) for p in params if p.name in SPECS}
         if model:
-            reconfigure(self.actuator, model)
+            self.actuator.reconfigure(model)
             self._limit = self.actuator.params["valve.command_limit"]
             self._variance = self.actuator.constants.sigma_p ** 2
             for m in self._msg_p:
