@@ -56,6 +56,7 @@ from jetpipe_ros.model.params import NODE_NAME, ParamSpec, check_value
 from jetpipe_ros.nodes import interface, process
 from jetpipe_ros.nodes.pacing import Pacer
 from jetpipe_ros.nodes.parameters import StartupError, declare, unknown_overrides, value
+from jetpipe_ros.package_data import share_file
 
 #: The node's own parameters (the model's are :data:`jetpipe_ros.model.SPECS`).
 NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
@@ -144,7 +145,7 @@ class ActuatorSim(Node):
             rate = ", lockstep (one sample per voltage_cmd)"
         self.get_logger().info(
             f"started: time_mode {opts['time_mode']}{rate}, sample time {self._dt * 1e3:g} ms, "
-            f"effects: {effects}, topic contract {interface.share_file(interface.CONTRACT)}")
+            f"effects: {effects}, topic contract {share_file(interface.CONTRACT)}")
 
     # -- start-up ---------------------------------------------------------------------------
 

@@ -51,6 +51,7 @@ from jetpipe_ros.campaign import Campaign, CampaignError, Phase, load_campaign
 from jetpipe_ros.model.params import ParamSpec
 from jetpipe_ros.nodes import interface, process
 from jetpipe_ros.nodes.parameters import StartupError, declare, unknown_overrides, value
+from jetpipe_ros.package_data import PackageDataError, share_file
 
 NODE_NAME = "id_recorder"
 NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
@@ -393,8 +394,8 @@ def _campaign_path(name: str) -> Path:
     if path.is_file() or path.is_absolute():
         return path
     try:
-        return interface.share_file(name)
-    except interface.ContractError:
+        return share_file(name)
+    except PackageDataError:
         return path  # load_campaign names it as given
 
 
