@@ -16,9 +16,9 @@ from jetpipe_ros.campaign.plan import AREA
 from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.identify import identify
 from jetpipe_ros.identify import synthetic as syn
-from jetpipe_ros.identify.flow_map import evaluate
 from jetpipe_ros.identify.friction import paper_planes
 from jetpipe_ros.model import Actuator, ModelParams
+from jetpipe_ros.model.flow import mass_flow
 from jetpipe_ros.model.params import FLOW_COEFFICIENTS
 
 REPO = Path(__file__).resolve().parent.parent
@@ -121,7 +121,7 @@ def test_identification_plan_feeds_every_procedure(identified):
 def test_identification_plan_recovers_the_flow_map(identified):
     """test_identify.py's tolerance: within the paper's fit error (0.0005 kg/s) of Eq. 8."""
     s = identified.flow.samples
-    err = evaluate(identified.flow.coefficients, s.u, s.p_bar) - evaluate(FLOW_COEFFICIENTS,
+    err = mass_flow(identified.flow.coefficients, s.u, s.p_bar) - mass_flow(FLOW_COEFFICIENTS,
                                                                           s.u, s.p_bar)
     assert np.max(np.abs(err)) < 5e-4
     assert np.sqrt(np.mean(err ** 2)) < 5e-5

@@ -13,11 +13,11 @@ from jetpipe_ros.dataset import DatasetError, Entry, Experiment, read_dataset, w
 from jetpipe_ros.identify import identify
 from jetpipe_ros.identify import synthetic as syn
 from jetpipe_ros.identify.experiments import Recording
-from jetpipe_ros.identify.flow_map import evaluate
 from jetpipe_ros.identify.friction import paper_planes
 from jetpipe_ros.identify.hysteresis import identify_hysteresis
 from jetpipe_ros.identify.valve import peak, response
 from jetpipe_ros.model import ModelParams, load_params
+from jetpipe_ros.model.flow import mass_flow
 from jetpipe_ros.model.params import FLOW_COEFFICIENTS
 from jetpipe_ros.replay import replay
 
@@ -50,12 +50,12 @@ def test_every_procedure_ran_on_its_experiments(result):
 def test_flow_map_recovers_eq8_on_the_identified_range(result):
     """Within the paper's own fit error (max 0.0005 kg/s) of Eq. 8 wherever data was taken."""
     s = result.flow.samples
-    err = evaluate(result.flow.coefficients, s.u, s.p_bar) - evaluate(FLOW_COEFFICIENTS, s.u,
+    err = mass_flow(result.flow.coefficients, s.u, s.p_bar) - mass_flow(FLOW_COEFFICIENTS, s.u,
                                                                         s.p_bar)
     assert np.max(np.abs(err)) < 5e-4
     assert np.sqrt(np.mean(err ** 2)) < 5e-5
     assert result.flow.max_error < 1e-3
-    null = optimize.brentq(lambda p: evaluate(result.flow.coefficients, 0.0, p)[0], 2.0, 8.0)
+    null = optimize.brentq(lambda p: mass_flow(result.flow.coefficients, 0.0, p)[0], 2.0, 8.0)
     assert null == pytest.approx(4.165, abs=0.05)
 
 

@@ -6,9 +6,9 @@ piston clamped and released and the chambers' regulators switched between phases
 (:meth:`~jetpipe_ros.campaign.Phase.rig_changes`,
 :meth:`~jetpipe_ros.model.Actuator.reconfigure`),
 closed-loop phases through the same :class:`~jetpipe_ros.control.Pid` as the ``controller``
-node (one controller for the campaign, its state carried from one closed-loop phase to the next,
-as the node's). Row k of an experiment's CSV holds what the sensors read at t_k = k dt and the command
-applied over [t_k, t_k+1), the convention of :func:`jetpipe_ros.model.simulate`.
+node (one controller for the campaign, its state carried from one closed-loop phase to the
+next, as the node's). Row k of an experiment's CSV holds what the sensors read at t_k = k dt and
+the command applied over [t_k, t_k+1), the convention of :func:`jetpipe_ros.model.simulate`.
 """
 
 from __future__ import annotations

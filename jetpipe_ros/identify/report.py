@@ -11,10 +11,10 @@ from typing import Any
 
 import numpy as np
 
-from jetpipe_ros.identify.flow_map import evaluate
 from jetpipe_ros.identify.friction import QUANTITIES, paper_planes
 from jetpipe_ros.identify.identify import Identification
 from jetpipe_ros.identify.valve import peak, response
+from jetpipe_ros.model.flow import mass_flow
 from jetpipe_ros.model.params import FLOW_COEFFICIENTS, FRICTION_UNITS
 from jetpipe_ros.model.valve import jetpipe_position
 
@@ -108,10 +108,10 @@ def figures(ident: Identification) -> list[tuple[str, str]]:
             if not m.any():
                 continue
             p = np.linspace(s.p_bar[m].min(), s.p_bar[m].max(), 50)
-            line, = ax.plot(p, evaluate(ident.flow.coefficients, np.full(50, level), p) * 1e3,
+            line, = ax.plot(p, mass_flow(ident.flow.coefficients, np.full(50, level), p) * 1e3,
                             label=f"{level:g} V")
             ax.plot(s.p_bar[m][::20], s.q[m][::20] * 1e3, ".", ms=2, color=line.get_color())
-            ax.plot(p, evaluate(FLOW_COEFFICIENTS, np.full(50, level), p) * 1e3, ":",
+            ax.plot(p, mass_flow(FLOW_COEFFICIENTS, np.full(50, level), p) * 1e3, ":",
                     color=line.get_color())
         ax.set(xlabel="chamber pressure [bar]", ylabel="mass flow [g/s]",
                title="Flow map: samples (dots), identified Eq. 8 (lines), paper (dotted)")

@@ -20,11 +20,18 @@ P_ATM = 1.0e5
 P_SUPPLY_NOMINAL = 1.0e6
 
 
-@njit(cache=True, error_model="numpy")
-def flow_polynomial(coef: np.ndarray, u: float, p_bar: float) -> float:
-    """Eq. 8: mass flow [kg/s] for voltage ``u`` [V] and pressure ``p_bar`` [bar].
+#: Eq. 8's coefficients give g/s; the model works in kg/s.
+KG_PER_G = 1e-3
 
-    ``coef`` holds the 21 coefficients in the paper's order (result in g/s).
+
+@njit(cache=True, error_model="numpy")
+def flow_basis(u, p_bar):  # type: ignore[no-untyped-def]
+    """Eq. 8's 21 monomials u^i p^j (i + j <= 5) in the paper's order, for voltage ``u`` [V]
+    and pressure ``p_bar`` [bar]: 1, u, p, u^2, u p, p^2, u^3, ..., u p^4, p^5.
+
+    Floats (the kernel: a tuple of floats) or equal-shape arrays (the least-squares fit of
+    :mod:`jetpipe_ros.identify.flow_map`: a tuple of arrays): the one definition of Eq. 8's
+    terms that both the model and the identification use.
     """
     u2 = u * u
     u3 = u2 * u
@@ -32,12 +39,42 @@ def flow_polynomial(coef: np.ndarray, u: float, p_bar: float) -> float:
     p2 = p_bar * p_bar
     p3 = p2 * p_bar
     p4 = p3 * p_bar
-    g = (coef[0] + coef[1] * u + coef[2] * p_bar + coef[3] * u2 + coef[4] * u * p_bar
-         + coef[5] * p2 + coef[6] * u3 + coef[7] * u2 * p_bar + coef[8] * u * p2
-         + coef[9] * p3 + coef[10] * u4 + coef[11] * u3 * p_bar + coef[12] * u2 * p2
-         + coef[13] * u * p3 + coef[14] * p4 + coef[15] * u4 * u + coef[16] * u4 * p_bar
-         + coef[17] * u3 * p2 + coef[18] * u2 * p3 + coef[19] * u * p4 + coef[20] * p4 * p_bar)
-    return g * 1e-3
+    return (u * 0.0 + 1.0, u, p_bar, u2, u * p_bar, p2, u3, u2 * p_bar, u * p2, p3, u4,
+            u3 * p_bar, u2 * p2, u * p3, p4, u4 * u, u4 * p_bar, u3 * p2, u2 * p3, u * p4,
+            p4 * p_bar)
+
+
+@njit(cache=True, error_model="numpy")
+def flow_polynomial(coef: np.ndarray, u: float, p_bar: float) -> float:
+    """Eq. 8: mass flow [kg/s] for voltage ``u`` [V] and pressure ``p_bar`` [bar].
+
+    ``coef`` holds the 21 coefficients in the paper's order (result in g/s).
+    """
+    t = flow_basis(u, p_bar)
+    # The dot product with constant indices: numba indexes a tuple at full speed only so (a
+    # loop over the terms costs 8x in the kernel).
+    g = (coef[0] * t[0] + coef[1] * t[1] + coef[2] * t[2] + coef[3] * t[3] + coef[4] * t[4]
+         + coef[5] * t[5] + coef[6] * t[6] + coef[7] * t[7] + coef[8] * t[8] + coef[9] * t[9]
+         + coef[10] * t[10] + coef[11] * t[11] + coef[12] * t[12] + coef[13] * t[13]
+         + coef[14] * t[14] + coef[15] * t[15] + coef[16] * t[16] + coef[17] * t[17]
+         + coef[18] * t[18] + coef[19] * t[19] + coef[20] * t[20])
+    return g * KG_PER_G
+
+
+def flow_matrix(u: np.ndarray | float, p_bar: np.ndarray | float) -> np.ndarray:
+    """(n, 21) matrix of Eq. 8's monomials (:func:`flow_basis`) for voltages ``u`` [V] and
+    pressures ``p_bar`` [bar] (broadcast against each other, flattened): the regressors of a
+    least-squares fit of the coefficients [g/s]."""
+    u, p = np.broadcast_arrays(np.asarray(u, dtype=float), np.asarray(p_bar, dtype=float))
+    return np.stack(flow_basis(np.ascontiguousarray(u.ravel()),
+                               np.ascontiguousarray(p.ravel())), axis=-1)
+
+
+def mass_flow(coef: np.ndarray, u: np.ndarray | float, p_bar: np.ndarray | float
+              ) -> np.ndarray:
+    """Eq. 8 over arrays: mass flow [kg/s] at voltages ``u`` [V] and pressures ``p_bar`` [bar]
+    (broadcast, flattened), coefficients ``coef`` in the paper's order [g/s]."""
+    return flow_matrix(u, p_bar) @ np.asarray(coef, dtype=float) * KG_PER_G
 
 
 @njit(cache=True, error_model="numpy")
