@@ -107,9 +107,14 @@ def test_offline_friction_test_follows_newtons_law(tmp_path):
 
 @pytest.fixture(scope="module")
 def identified(tmp_path_factory):
+    """Identified from a start that is off: flow map and friction planes scaled by 1.2, 1.3."""
     root = run_campaign_offline(NOISY, load_campaign(PLAN),
                                 tmp_path_factory.mktemp("idc") / "data", seed=11)
-    return identify(read_dataset(root))
+    start = ModelParams().with_values({
+        "flow.coefficients": [1.2 * c for c in FLOW_COEFFICIENTS],
+        **{f"friction.{ph}.{q}": [1.3 * c for c in paper_planes(ph)[q]]
+           for ph in ("entry", "exit") for q in paper_planes(ph)}})
+    return identify(read_dataset(root), base=start)
 
 
 def test_identification_plan_feeds_every_procedure(identified):
