@@ -220,7 +220,7 @@ def test_record_mode_keeps_a_real_time_stream(launch, tmp_path):
     assert f"recorded {stamps.size} of {expected}" in line
 
 
-def test_export_refuses_a_bag_without_campaign(tmp_path):
+def test_export_refuses_a_directory_without_metadata(tmp_path):
     with pytest.raises(BagError, match="not a rosbag2 bag"):
         export_bag(tmp_path, tmp_path / "out")
 
