@@ -36,8 +36,13 @@ def _seconds(t) -> float:
     return t.sec + 1e-9 * t.nanosec
 
 
-def _speed(probe: Probe, window: float) -> float:
-    """Simulated seconds per wall second over ``window`` [s], from /clock."""
+WINDOW = 3.0  # [s] of wall time per speed measurement: long enough to average out stalls
+
+
+def _speed(probe: Probe, window: float = WINDOW) -> float:
+    """Simulated seconds per wall second over ``window`` [s]: the simulated time /clock
+    advanced (samples stepped, not messages received) over the wall time between the two
+    readings."""
     probe.spin_for(0.2)
     t0 = time.monotonic()
     start = _seconds(probe.messages("/clock")[-1].clock)
@@ -47,7 +52,9 @@ def _speed(probe: Probe, window: float) -> float:
 
 
 def test_clock_runs_faster_than_real_time(probe):
-    assert _speed(probe, 1.5) > 1.5
+    """As fast as it can: about 4x real time on the idle 2-core machine, 2.6x seen under the
+    load of three concurrent test runs; a simulator paced to the wall clock would stay <= 1."""
+    assert _speed(probe) > 1.2
 
 
 def test_subscriber_with_use_sim_time_follows_clock(probe):
@@ -73,5 +80,7 @@ def test_real_time_factor_can_be_set(sim, probe):
     future = client.set_parameters([Parameter("real_time_factor", value=2.0)])
     assert probe.spin_until(future.done, 10.0)
     assert future.result().results[0].successful
-    assert _speed(probe, 1.5) == pytest.approx(2.0, rel=0.2)
+    # Paced: never above the target (flat out it ran faster); a starved process may fall
+    # behind and drop a backlog, hence the lower margin.
+    assert 1.5 < _speed(probe) < 2.2
     assert sim.popen.poll() is None
