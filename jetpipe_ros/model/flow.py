@@ -25,7 +25,7 @@ KG_PER_G = 1e-3
 
 
 @njit(cache=True, error_model="numpy")
-def flow_basis(u, p_bar):  # type: ignore[no-untyped-def]
+def flow_basis(u: float | np.ndarray, p_bar: float | np.ndarray) -> tuple[float | np.ndarray, ...]:
     """Eq. 8's 21 monomials u^i p^j (i + j <= 5) in the paper's order, for voltage ``u`` [V]
     and pressure ``p_bar`` [bar]: 1, u, p, u^2, u p, p^2, u^3, ..., u p^4, p^5.
 

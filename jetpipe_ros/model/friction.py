@@ -22,7 +22,8 @@ MIN_STRIBECK = 1e-4
 
 
 @njit(cache=True, error_model="numpy")
-def plane_basis(p1_bar, p2_bar):  # type: ignore[no-untyped-def]
+def plane_basis(p1_bar: float | np.ndarray, p2_bar: float | np.ndarray
+                ) -> tuple[float | np.ndarray, ...]:
     """The terms (1, p1, p2) of a friction plane c0 + c1 p1 + c2 p2 (Eq. 20-27) at chamber
     pressures ``p1_bar``, ``p2_bar`` [bar]: floats or equal-shape arrays (the regressors of the
     planes' least-squares fit in :mod:`jetpipe_ros.identify.friction`)."""
@@ -30,7 +31,8 @@ def plane_basis(p1_bar, p2_bar):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, error_model="numpy")
-def plane(c, p1_bar, p2_bar):  # type: ignore[no-untyped-def]
+def plane(c: np.ndarray, p1_bar: float | np.ndarray, p2_bar: float | np.ndarray
+          ) -> float | np.ndarray:
     """One of Eq. 20-27: c0 + c1 p1 + c2 p2 for coefficients ``c`` (3,) at chamber pressures
     ``p1_bar``, ``p2_bar`` [bar] (floats or arrays), in the unit of the parameter."""
     t = plane_basis(p1_bar, p2_bar)
@@ -64,7 +66,7 @@ def friction_parameters(planes: np.ndarray, direction: float, p1: float, p2: flo
 
 
 @njit(cache=True, error_model="numpy")
-def stribeck_force(v, f_s, v_s, f_c):  # type: ignore[no-untyped-def]
+def stribeck_force(v: float | np.ndarray, f_s: float, v_s: float, f_c: float) -> float | np.ndarray:
     """Eq. 18 without the viscous term: F_C + (F_S - F_C) exp(-(v/v_s)^2) [N] at velocity
     ``v`` [m/s] (a float, or an array). The kernel adds the viscous term F_v v implicitly."""
     r = v / v_s
@@ -72,7 +74,8 @@ def stribeck_force(v, f_s, v_s, f_c):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, error_model="numpy")
-def sliding_friction(v, f_s, v_s, f_v, f_c):  # type: ignore[no-untyped-def]
+def sliding_friction(v: float | np.ndarray, f_s: float, v_s: float, f_v: float, f_c: float
+                     ) -> float | np.ndarray:
     """Eq. 18: friction force [N] while sliding at velocity ``v`` [m/s] (a float, or an array:
     the identification fits it to the sliding samples of a friction test)."""
     return stribeck_force(v, f_s, v_s, f_c) + f_v * v
