@@ -49,8 +49,8 @@ def slide(p1: float, p2: float, f_load: np.ndarray, y0: float, mass: float = 1.0
     stop.terminal = True  # type: ignore[attr-defined]
     stop.direction = 1.0  # type: ignore[attr-defined]
     t = np.arange(f_a.size) * dt
-    sol = solve_ivp(rhs, (t[k0], t[-1]), [y0, 0.0], method="Radau", t_eval=t[k0:],
-                    events=stop, max_step=dt / 4, rtol=1e-8, atol=[1e-10, 1e-9])
+    sol = solve_ivp(rhs, (t[k0], t[-1]), [y0, 0.0], method="LSODA", t_eval=t[k0:],
+                    events=stop, rtol=1e-8, atol=[1e-10, 1e-9])  # stiff: F_v / M ~ 3000 1/s
     n = k0 + sol.y.shape[1]
     y, v = np.full(t.size, y0), np.zeros(t.size)
     y[k0:n], v[k0:n] = sol.y

@@ -204,8 +204,8 @@ def test_lugre_follows_its_equations(force):
         return [v, force - sigma0 * z - f_v * v, v - sigma0 * abs(v) * z / g]
 
     t = np.arange(n) * 1e-3
-    sol = solve_ivp(rhs, (0.0, t[-1]), [0.0, 0.0, 0.0], method="Radau", t_eval=t,
-                    rtol=1e-9, atol=[1e-12, 1e-10, 1e-12], max_step=2.5e-4)
+    sol = solve_ivp(rhs, (0.0, t[-1]), [0.0, 0.0, 0.0], method="LSODA", t_eval=t,
+                    rtol=1e-9, atol=[1e-12, 1e-10, 1e-12])
     assert np.max(np.abs(trace.y - sol.y[0])) < 2e-6
     if force < abs(f_s):
         assert trace.friction[-1] == pytest.approx(force, rel=1e-3)  # holds
