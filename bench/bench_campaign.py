@@ -10,7 +10,8 @@
    fraction of ``joint_states`` samples, counted from the bag's stamps.
 
 Prints a markdown table next to the targets (issue 3: lock-step >= 5x, kept >= 99.9 %).
-Processes run in ROS domain 97 with localhost discovery. Usage:
+Processes run in a ROS domain reserved for the run (jetpipe_ros.nodes.domain) with localhost
+discovery. Usage:
 ``.venv/bin/python bench/bench_campaign.py [--seconds 60] [--experiments a,b]``
 """
 
@@ -34,9 +35,11 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
 from jetpipe_ros.campaign import default_campaign  # noqa: E402
+from jetpipe_ros.nodes.domain import reserve_domain  # noqa: E402
 from jetpipe_ros.nodes.id_recorder import stamp_of  # noqa: E402
 
-ENV = dict(os.environ, ROS_DOMAIN_ID="97", ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+DOMAIN = reserve_domain()  # held until the benchmark ends: no other run shares it
+ENV = dict(os.environ, ROS_DOMAIN_ID=str(DOMAIN.domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
            PYTHONUNBUFFERED="1",
            PYTHONPATH=os.pathsep.join([str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])]))
 

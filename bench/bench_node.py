@@ -21,6 +21,10 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
+
+from jetpipe_ros.nodes.domain import reserve_domain  # noqa: E402
+
 WARM_UP = 2.0  # [s] after the first message: discovery settles, caches warm
 TICKS = os.sysconf("SC_CLK_TCK")  # /proc/<pid>/stat time unit [1/s]
 
@@ -103,7 +107,8 @@ def main() -> None:
     parser.add_argument("--executor", choices=("events", "single"), default="events",
                         help="rclpy executor of the simulator")
     args = parser.parse_args()
-    os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 100))
+    domain = reserve_domain()  # held until the benchmark ends: no other run shares it
+    os.environ["ROS_DOMAIN_ID"] = str(domain.domain)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     proc, lines = start_sim(args.executor)
     try:

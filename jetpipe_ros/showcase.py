@@ -38,7 +38,7 @@ from jetpipe_ros.bag import export_bag  # noqa: E402
 from jetpipe_ros.dataset import Dataset, read_dataset  # noqa: E402
 from jetpipe_ros.model import ModelParams, simulate  # noqa: E402
 from jetpipe_ros.model.valve import valve_tf  # noqa: E402
-from jetpipe_ros.nodes.interface import share_file  # noqa: E402
+from jetpipe_ros.package_data import share_file  # noqa: E402
 
 NAMESPACE = "/showcase"
 STANDIN = {"effect": "valve_lag", "corner_frequency": 20.0}  #: the "real" hardware's effect

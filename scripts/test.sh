@@ -1,7 +1,14 @@
 #!/usr/bin/env bash
-# Run the whole test suite in .venv (created first if missing).
+# Run the test suite in the venv of a ROS 2 distro (created first if missing); arguments go to
+# pytest. ROS_DISTRO_WHEELS=jazzy runs it on Jazzy (.venv-jazzy) instead of Kilted (.venv).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-[ -x .venv/bin/python ] && .venv/bin/python -c "import jetpipe_ros, rclpy, numba" 2>/dev/null \
-  || scripts/setup_venv.sh
-exec .venv/bin/python -m pytest test -q "$@"
+DISTRO=${ROS_DISTRO_WHEELS:-kilted}
+case "$DISTRO" in
+  kilted) VENV=${VENV:-.venv} ;;
+  jazzy) VENV=${VENV:-.venv-jazzy} ;;
+  *) echo "[test] unknown ROS 2 distro '$DISTRO': kilted or jazzy" >&2; exit 2 ;;
+esac
+[ -x "$VENV/bin/python" ] && "$VENV/bin/python" -c "import jetpipe_ros, rclpy, numba" 2>/dev/null \
+  || VENV="$VENV" scripts/setup_venv.sh "$DISTRO"
+exec "$VENV/bin/python" -m pytest test -q "$@"

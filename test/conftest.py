@@ -12,6 +12,8 @@ from pathlib import Path
 
 import pytest
 
+from jetpipe_ros.nodes.domain import reserve_domain
+
 REPO = Path(__file__).resolve().parent.parent
 
 
@@ -19,14 +21,17 @@ REPO = Path(__file__).resolve().parent.parent
 def ros_domain() -> Iterator[int]:
     """Isolate this test run's ROS traffic: a domain id of its own, localhost discovery only.
 
-    Set in ``os.environ`` before any ``rclpy.init`` of the run, inherited by subprocesses.
+    The domain is reserved for the whole session (:func:`jetpipe_ros.nodes.domain.
+    reserve_domain`: a lock file per domain, held until the run ends or dies), so two runs at
+    once, from two checkouts or two CI jobs, never share one. Set in ``os.environ`` before any
+    ``rclpy.init`` of the run, inherited by subprocesses.
     """
     names = ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")
     saved = {name: os.environ.get(name) for name in names}
-    domain = 1 + os.getpid() % 100  # 1-100; 0 is everybody's default
-    os.environ["ROS_DOMAIN_ID"] = str(domain)
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    yield domain
+    with reserve_domain() as reservation:
+        os.environ["ROS_DOMAIN_ID"] = str(reservation.domain)
+        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+        yield reservation.domain
     for name, old in saved.items():
         if old is None:
             os.environ.pop(name, None)

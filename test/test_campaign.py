@@ -5,11 +5,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jetpipe_ros.campaign import (CampaignError, load_campaign, parse_campaign, reconfigure,
+from jetpipe_ros.campaign import (CampaignError, load_campaign, parse_campaign,
                                   run_campaign_offline)
 from jetpipe_ros.campaign import signals
 from jetpipe_ros.dataset import read_dataset
-from jetpipe_ros.model import Actuator, ModelParams, simulate
+from jetpipe_ros.model import ModelParams, simulate
 
 REPO = Path(__file__).resolve().parent.parent
 PLAN = REPO / "config" / "campaign.yaml"
@@ -126,17 +126,6 @@ def test_bad_plan_file_is_named(tmp_path):
         load_campaign(bad)
     with pytest.raises(CampaignError, match="cannot read"):
         load_campaign(tmp_path / "missing.yaml")
-
-
-def test_reconfigure_keeps_the_state():
-    act = Actuator()
-    act.run(np.full(200, 1.0))
-    before = act.state.copy()
-    reconfigure(act, {"mechanics.locked": True})
-    assert np.array_equal(act.state, before) and act.constants.locked
-    y = act.state[0]
-    act.run(np.full(200, -1.0))
-    assert act.state[0] == y  # clamped where it was
 
 
 @pytest.fixture(scope="module")

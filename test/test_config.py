@@ -4,12 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 import yaml
 
 from jetpipe_ros.model import EFFECTS, SPECS, ModelParams, load_params
 from jetpipe_ros.model.params import flatten
 from jetpipe_ros.nodes import interface
 from jetpipe_ros.nodes.actuator_sim import NODE_SPECS
+from jetpipe_ros.package_data import PackageDataError, share_file
 
 REPO = Path(__file__).resolve().parent.parent
 CONFIG = REPO / "config" / "actuator.yaml"
@@ -57,4 +59,10 @@ def test_contract_is_design_section_4():
 
 
 def test_contract_found_from_the_source_tree():
-    assert interface.share_file(interface.CONTRACT) == REPO / "msg_defs" / "topics.yaml"
+    assert share_file(interface.CONTRACT) == REPO / "msg_defs" / "topics.yaml"
+
+
+def test_missing_data_file_names_where_it_was_looked_for():
+    with pytest.raises(PackageDataError, match=r"config/nope.yaml not found; looked in: .*"
+                                               r"config/nope.yaml"):
+        share_file("config/nope.yaml")

@@ -57,6 +57,6 @@ def test_malformed_input_names_file_line_column_and_writes_nothing(tmp_path, cap
     assert list(tmp_path.iterdir()) == [src]
 
 
-def test_missing_dataset_columns_are_reported():
+def test_missing_experiment_file_is_reported():
     with pytest.raises(DatasetError, match="cannot open"):
         read_experiment("/nonexistent/x.csv")

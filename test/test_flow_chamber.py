@@ -5,7 +5,7 @@ import pytest
 from scipy import optimize
 
 from jetpipe_ros.model.chamber import chamber_volumes, pressure_rates
-from jetpipe_ros.model.flow import chamber_inflow, flow_polynomial
+from jetpipe_ros.model.flow import chamber_inflow, flow_matrix, flow_polynomial, mass_flow
 from jetpipe_ros.model.params import FLOW_COEFFICIENTS
 
 COEF = np.array(FLOW_COEFFICIENTS)
@@ -15,6 +15,19 @@ COEF = np.array(FLOW_COEFFICIENTS)
 def test_flow_map_equilibrium_pressures(u, p_bar):
     root = optimize.brentq(lambda p: flow_polynomial(COEF, u, p), 1.0, 10.0)
     assert root == pytest.approx(p_bar, abs=0.01)
+
+
+def test_array_and_kernel_paths_of_eq8_agree():
+    """The least-squares regressors (flow_matrix, arrays) and the kernel's flow_polynomial
+    (compiled, scalars) evaluate the same monomials; a unit coefficient picks out one term."""
+    rng = np.random.default_rng(0)
+    u, p = rng.uniform(-3.4, 3.4, 200), rng.uniform(1.0, 10.0, 200)
+    scalar = np.array([flow_polynomial(COEF, a, b) for a, b in zip(u, p)])
+    np.testing.assert_allclose(mass_flow(COEF, u, p), scalar, rtol=1e-12, atol=1e-15)
+    unit = np.zeros(21)
+    unit[17] = 1.0  # the paper's 18th term: u^3 p^2
+    assert flow_polynomial(unit, 2.0, 3.0) == pytest.approx(1e-3 * 2.0 ** 3 * 3.0 ** 2)
+    assert flow_matrix(2.0, 3.0)[0, 17] == 2.0 ** 3 * 3.0 ** 2
 
 
 def test_no_outflow_at_or_below_atmosphere():
@@ -79,7 +92,8 @@ def test_valve_gain_moves_the_locked_equilibrium_to_the_null_of_the_scaled_volta
 
 
 def test_flow_polynomial_is_the_papers_sum_of_terms():
-    """Eq. 8 evaluated by Horner's scheme equals the 21 terms in the paper's order."""
+    """Eq. 8 as the model evaluates it (coefficients times flow_basis) equals the 21 terms
+    written out here in the paper's order."""
     rng = np.random.default_rng(2)
     for u, p in zip(rng.uniform(-3.4, 3.4, 200), rng.uniform(1.0, 10.0, 200)):
         terms = [1, u, p, u**2, u * p, p**2, u**3, u**2 * p, u * p**2, p**3, u**4, u**3 * p,

@@ -1,6 +1,11 @@
 """jetpipe identify: each procedure recovers the pinned model (DESIGN.md s.2, the paper's
-coefficients) from simulated noisy recordings; the identified YAML reproduces a held-out run;
-bad or insufficient data is named."""
+coefficients) from simulated recordings, starting from parameters that are off; the identified
+YAML reproduces a held-out run; bad or insufficient data is named.
+
+Two kinds of check. On noise-free recordings the procedures must converge, from far starts, to
+the truth within their own bias (tight). With the paper's sensor noise (seed 11) the estimates
+scatter: the tolerances below cover what seeds 0-11 gave (stated per check), so they do not hold
+for one lucky seed only."""
 
 from __future__ import annotations
 
@@ -9,22 +14,45 @@ import pytest
 from scipy import optimize
 
 from jetpipe_ros.cli import main
-from jetpipe_ros.dataset import DatasetError, Entry, Experiment, read_dataset, write_dataset
+from jetpipe_ros.dataset import DatasetError, read_dataset
 from jetpipe_ros.identify import identify
 from jetpipe_ros.identify import synthetic as syn
-from jetpipe_ros.identify.experiments import Recording
-from jetpipe_ros.identify.flow_map import evaluate
-from jetpipe_ros.identify.friction import paper_planes
+from jetpipe_ros.identify.experiments import of_kind, recordings
+from jetpipe_ros.identify.friction import QUANTITIES, paper_planes
 from jetpipe_ros.identify.hysteresis import identify_hysteresis
-from jetpipe_ros.identify.valve import peak, response
+from jetpipe_ros.identify.valve import FITTED, identify_valve, peak, response
 from jetpipe_ros.model import ModelParams, load_params
+from jetpipe_ros.model.flow import mass_flow
+from jetpipe_ros.model.friction import plane
 from jetpipe_ros.model.params import FLOW_COEFFICIENTS
 from jetpipe_ros.replay import replay
 
-NOISY = ModelParams().with_values({"sensors.noise": True, "sensors.seed": 11})
+TRUTH = ModelParams()
+NOISY = TRUTH.with_values({"sensors.noise": True, "sensors.seed": 11})
 ENTRY = ((1, 9.92), (4.15, 9.92), (7.18, 9.9), (1, 6.93), (1, 3.96), (4.23, 8.89),
          (3.02, 5.89), (2.99, 4.2))
 EXIT = ((4.015, 1), (6.89, 1), (8.98, 1), (10.115, 8.89), (10.205, 4.195))
+#: Where identification starts: every identified parameter off (valve, flow map, planes; a
+#: hysteresis the data do not have). Chamber geometry and the mass are measured, as in the paper.
+START = TRUTH.with_values({
+    "valve.back_emf_constant": 0.05, "valve.delay": 0.0, "valve.lag_zero": 300.0,
+    "valve.lag_pole": 120.0,
+    "flow.coefficients": [1.2 * c for c in FLOW_COEFFICIENTS],
+    "effects.valve_hysteresis.enabled": True, "effects.valve_hysteresis.half_width": 0.2,
+    **{f"friction.{ph}.{q}": [1.3 * c for c in paper_planes(ph)[q]]
+       for ph in ("entry", "exit") for q in QUANTITIES}})
+
+
+def _plane_errors(ident: ModelParams, tests, phase: str) -> dict[str, tuple[float, float]]:
+    """quantity -> (largest relative, largest absolute) error of the identified plane against
+    Eq. 20-27 at the pressures of ``tests`` of ``phase``."""
+    out = {}
+    for q in QUANTITIES:
+        got, want = (np.array([plane(np.asarray(c), t.p1_bar, t.p2_bar)
+                               for t in tests if t.phase == phase])
+                     for c in (ident[f"friction.{phase}.{q}"], paper_planes(phase)[q]))
+        out[q] = (float(np.max(np.abs(got / want - 1.0))), float(np.max(np.abs(got - want))))
+    return out
 
 
 @pytest.fixture(scope="module")
@@ -36,7 +64,7 @@ def dataset(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def result(dataset):
-    return identify(dataset)
+    return identify(dataset, base=START)
 
 
 def test_every_procedure_ran_on_its_experiments(result):
@@ -47,101 +75,162 @@ def test_every_procedure_ran_on_its_experiments(result):
     assert kinds["friction_1_6p93bar"] == "friction"
 
 
+def test_every_identified_parameter_left_its_start(result):
+    changed = result.changes()
+    assert set(FITTED) | {"flow.coefficients", "effects.valve_hysteresis.enabled"} \
+        <= set(changed)
+    assert {f"friction.{ph}.{q}" for ph in ("entry", "exit") for q in QUANTITIES} <= set(changed)
+    assert changed["effects.valve_hysteresis.enabled"] is False  # the data have none
+
+
 def test_flow_map_recovers_eq8_on_the_identified_range(result):
-    """Within the paper's own fit error (max 0.0005 kg/s) of Eq. 8 wherever data was taken."""
+    """The paper's own fit error is 0.0005 kg/s; seeds 0-11 give 0.00015-0.00022 kg/s at most
+    and 1.6e-5 kg/s RMS against Eq. 8 wherever data was taken (fit residual up to 0.0005)."""
     s = result.flow.samples
-    err = evaluate(result.flow.coefficients, s.u, s.p_bar) - evaluate(FLOW_COEFFICIENTS, s.u,
+    err = mass_flow(result.flow.coefficients, s.u, s.p_bar) - mass_flow(FLOW_COEFFICIENTS, s.u,
                                                                         s.p_bar)
-    assert np.max(np.abs(err)) < 5e-4
-    assert np.sqrt(np.mean(err ** 2)) < 5e-5
-    assert result.flow.max_error < 1e-3
-    null = optimize.brentq(lambda p: evaluate(result.flow.coefficients, 0.0, p)[0], 2.0, 8.0)
+    assert np.max(np.abs(err)) < 3e-4
+    assert np.sqrt(np.mean(err ** 2)) < 2.5e-5
+    assert result.flow.max_error < 6e-4
+    null = optimize.brentq(lambda p: mass_flow(result.flow.coefficients, 0.0, p)[0], 2.0, 8.0)
     assert null == pytest.approx(4.165, abs=0.05)
 
 
+@pytest.fixture(scope="module")
+def exact_sweep(tmp_path_factory):
+    """The 1 V, 1-70 Hz sweep of Sec. 2.4 without sensor noise."""
+    ds = syn.record(TRUTH, [syn.valve_sweep()], tmp_path_factory.mktemp("sweep") / "d")
+    return of_kind(recordings(ds), "sweep")
+
+
+@pytest.mark.parametrize("start", [(0.05, 0.0, 300.0, 120.0), (0.2, 0.004, 150.0, 250.0)],
+                         ids=["low_Kb_no_delay", "high_Kb_4ms"])
+def test_valve_fit_converges_from_far_starts(exact_sweep, start):
+    """From K_b 0.05 or 0.2 V s/rad, delay 0 or 4 ms and a lead-lag far off, the fit reaches
+    the truth within its own bias: the kernel's explicit pressure step shows as half a sub-step
+    (0.125 ms) of extra delay, hence 2.12 ms and 2.9 deg at 60 Hz (16 sub-steps: 2.03 ms,
+    0.7 deg)."""
+    base = TRUTH.with_values(dict(zip(FITTED, start)))
+    ident = base.with_values(identify_valve(exact_sweep, base, FLOW_COEFFICIENTS).values)
+    assert ident["valve.back_emf_constant"] == pytest.approx(0.1, rel=0.01)
+    assert ident["valve.delay"] == pytest.approx(0.002 + 0.000125, abs=2e-5)
+    assert ident["valve.lag_zero"] == pytest.approx(220.0, rel=0.05)
+    assert ident["valve.lag_pole"] == pytest.approx(155.0, rel=0.05)
+    f_r, gain = peak(ident)
+    assert f_r == pytest.approx(49.7, abs=0.1)
+    assert gain == pytest.approx(peak(TRUTH)[1], rel=0.005)
+    f = np.linspace(1.0, 60.0, 300)
+    ratio = response(ident, f) / response(TRUTH, f)
+    assert np.max(np.abs(np.abs(ratio) - 1.0)) < 0.005
+    assert np.max(np.abs(np.degrees(np.angle(ratio)))) < 3.2
+
+
 def test_valve_recovers_resonance_delay_and_lead_lag(result):
+    """With the paper's noise and the flow map identified from the same data (its error feeds
+    the inversion). Seeds 0-11 from this start: resonance 49.80-50.25 Hz, peak gain +0.8 to
+    +2.5 %, delay 1.74-2.10 ms, K_b 0.087-0.099, chain response within 2.7 % and 7.7 deg up to
+    60 Hz (the lead-lag's zero and pole trade off against each other and K_b, so the response
+    is what is pinned)."""
     ident = result.params
     f_r, gain = peak(ident)
-    assert f_r == pytest.approx(49.7, abs=0.5)  # DESIGN.md s.2: gain peak at 49.7 Hz
-    assert gain == pytest.approx(peak(ModelParams())[1], rel=0.03)
+    assert f_r == pytest.approx(49.7, abs=0.6)  # DESIGN.md s.2: gain peak at 49.7 Hz
+    assert gain == pytest.approx(peak(TRUTH)[1], rel=0.035)
     assert ident["valve.delay"] == pytest.approx(0.002, abs=3e-4)
     assert ident["valve.back_emf_constant"] == pytest.approx(0.1, rel=0.15)
-    # The whole chain (Eq. 4, 9, 10) up to 60 Hz: the lead-lag's zero and pole trade off
-    # against each other and K_b, so the response is what is pinned (gain 6 %, phase 8 deg;
-    # the kernel's explicit pressure step adds ~0.1 ms of apparent delay).
     f = np.linspace(1.0, 60.0, 300)
-    ratio = response(ident, f) / response(ModelParams(), f)
-    assert np.max(np.abs(np.abs(ratio) - 1.0)) < 0.06
-    assert np.max(np.abs(np.degrees(np.angle(ratio)))) < 8.0
-    assert result.valve.rms_error < 1.2 * 500.0  # residual at the pressure sensor noise
+    ratio = response(ident, f) / response(TRUTH, f)
+    assert np.max(np.abs(np.abs(ratio) - 1.0)) < 0.035
+    assert np.max(np.abs(np.degrees(np.angle(ratio)))) < 9.0
+    assert result.valve.rms_error < 1.3 * 500.0  # residual at the pressure sensor noise
 
 
-def _ramp(params):
-    cols = syn.slow_ramps(params)
-    exp = Experiment(**{k: cols[k] for k in ("t", "u", "y", "p1", "p2")})
-    return [Recording(Entry("ramp.csv", piston="locked"), exp, "ramp")]
+def _ramp(params, tmp_path):
+    ds = syn.record(params, [syn.slow_ramps()], tmp_path / "ramp")
+    return of_kind(recordings(ds), "ramp")
 
 
 @pytest.mark.parametrize(("half_width", "elements"), [(0.0, 1), (0.25, 1), (0.15, 4)])
-def test_hysteresis_half_width(half_width, elements):
+def test_hysteresis_half_width(half_width, elements, tmp_path):
+    """Seeds 0-11: half-width within 0.009 V, midpoint-line slope within 0.0005."""
     truth = NOISY if half_width == 0.0 else NOISY.with_effect(
         "valve_hysteresis", half_width=half_width, elements=elements)
-    h = identify_hysteresis(_ramp(truth), NOISY, FLOW_COEFFICIENTS)
-    assert h.half_width == pytest.approx(half_width, abs=0.02)
+    h = identify_hysteresis(_ramp(truth, tmp_path), NOISY, FLOW_COEFFICIENTS)
+    assert h.half_width == pytest.approx(half_width, abs=0.015)
     assert h.significant == (half_width > 0.0)
-    assert h.midline_slope == pytest.approx(1.0, abs=0.02)  # midpoint lines: u = u_eq
+    assert h.midline_slope == pytest.approx(1.0, abs=0.005)  # midpoint lines: u = u_eq
+
+
+@pytest.fixture(scope="module")
+def exact_friction(tmp_path_factory):
+    """The friction tests without sensor noise, identified from planes 30 % off."""
+    ds = syn.record(TRUTH, [syn.friction_test(p1, p2) for p1, p2 in (*ENTRY, *EXIT)],
+                    tmp_path_factory.mktemp("fr") / "d")
+    return identify(ds, base=START, procedures=["friction"], required=["friction"])
 
 
 @pytest.mark.parametrize("phase", ["entry", "exit"])
-def test_friction_planes_match_the_papers(result, phase):
-    """Identified planes against Eq. 20-27 at the test pressures: forces within 5 % or 3 N,
-    viscosity within 2 %, the Stribeck velocity (least visible at 1 kHz) within 15 % or
-    1.5 mm/s."""
-    planes, paper = result.params, paper_planes(phase)
-    tol = {"breakaway": (0.05, 3.0), "stribeck_velocity": (0.15, 1.5e-3),
-           "viscous": (0.02, 0.0), "coulomb": (0.05, 3.0)}
-    for t in (t for t in result.friction.tests if t.phase == phase):
-        for q, (rel, absolute) in tol.items():
-            c, c0 = planes[f"friction.{phase}.{q}"], paper[q]
-            got = c[0] + c[1] * t.p1_bar + c[2] * t.p2_bar
-            want = c0[0] + c0[1] * t.p1_bar + c0[2] * t.p2_bar
-            assert got == pytest.approx(want, rel=rel, abs=absolute), (q, t.name)
-    assert max(result.friction.max_relative_error[phase].values()) < 0.2
+def test_friction_planes_match_the_papers_without_noise(exact_friction, phase):
+    """Eq. 20-27 at the test pressures, within the procedure's own bias (zero-phase
+    derivatives of a 1 kHz record: forces 2.4 %, Stribeck velocity 5.6 %, Coulomb 8 %, at
+    most 0.7 N): forces within 3 % or 1 N, Stribeck velocity 7 %, viscous 0.2 %."""
+    tol = {"breakaway": (0.03, 1.0), "stribeck_velocity": (0.07, 0.0), "viscous": (0.002, 0.0),
+           "coulomb": (0.10, 1.0)}
+    errors = _plane_errors(exact_friction.params, exact_friction.friction.tests, phase)
+    for q, (rel, absolute) in tol.items():
+        assert errors[q][0] < rel or errors[q][1] < absolute, (q, errors[q])
+    assert max(exact_friction.friction.max_relative_error[phase].values()) < 0.1
+
+
+@pytest.mark.parametrize("phase", ["entry", "exit"])
+def test_friction_planes_with_noise(result, phase):
+    """With the paper's noise the per-test breakaway and Stribeck estimates scatter by several
+    newtons and 20-50 % (e.g. 27.3 +- 3.6 N against 23.5 N at (10.115, 8.89) bar over 20
+    seeds; planes up to 11 N off over seeds 0-11); the viscous planes stay within 0.4 % and the
+    Coulomb planes within 2.1 N over seeds 0-11 (forces and Stribeck velocity: see the
+    noise-free test)."""
+    errors = _plane_errors(result.params, result.friction.tests, phase)
+    assert errors["viscous"][0] < 0.01
+    assert errors["coulomb"][1] < 2.5
 
 
 def test_friction_worked_example(result):
-    """Sec. 4.2.3 at (1, 6.93) bar: F_S -95 N, v_s -0.015 m/s, F_v 3440 N s/m, F_C -56 N."""
+    """Sec. 4.2.3 at (1, 6.93) bar: F_S -95 N, v_s -0.015 m/s, F_v 3440 N s/m, F_C -56 N; one
+    noisy test (seeds 0-11: F_S -92.6 to -100.9 N, v_s -0.0129 to -0.0161 m/s, F_v within
+    0.6 %, F_C -55.9 to -58.1 N)."""
     test = next(t for t in result.friction.tests if t.name == "friction_1_6p93bar")
-    assert test.values["breakaway"] == pytest.approx(-95.0, rel=0.05)
+    assert test.values["breakaway"] == pytest.approx(-95.0, rel=0.07)
     assert test.values["stribeck_velocity"] == pytest.approx(-0.015, rel=0.15)
-    assert test.values["viscous"] == pytest.approx(3440.0, rel=0.02)
-    assert test.values["coulomb"] == pytest.approx(-56.0, rel=0.06)
+    assert test.values["viscous"] == pytest.approx(3440.0, rel=0.01)
+    assert test.values["coulomb"] == pytest.approx(-56.0, rel=0.05)
 
 
 def test_round_trip_through_the_cli(dataset, tmp_path, capsys):
-    """identify -> YAML -> simulate the held-out square wave: within 0.5 mm and 0.03 bar RMS
-    of the recording (sensor noise alone: 0.015 mm, 0.005 bar)."""
+    """identify from the off start (--params) -> YAML -> simulate the held-out square wave:
+    within 0.2 mm and 0.025 bar RMS of the recording (seeds 0-11: 0.08-0.13 mm, 0.014-0.019
+    bar; sensor noise alone: 0.015 mm, 0.005 bar), far closer than the start."""
+    start = tmp_path / "start.yaml"
+    start.write_text(START.to_ros_yaml())
     out = tmp_path / "params.yaml"
-    assert main(["identify", str(dataset.root), "--out", str(out)]) == 0
+    assert main(["identify", str(dataset.root), "--out", str(out), "--params", str(start)]) == 0
     printed = capsys.readouterr().out
     assert "paper: max about 0.0005 kg/s" in printed and "(paper: < 5 %)" in printed
     assert (tmp_path / "params.report.html").read_text().count("<img") >= 5
-    params = load_params(out)
     exp = next(x for e, x in dataset if e.role == "holdout")
-    trace = replay(params, exp)
-    assert np.sqrt(np.mean((trace.y - exp.y) ** 2)) < 5e-4
-    assert np.sqrt(np.mean((trace.p1 - exp.p1) ** 2)) < 3e3
-    assert np.ptp(trace.y) > 0.04  # the square wave moves the piston stop to stop
-
-
-def _write(tmp_path, runs):
-    return read_dataset(write_dataset(tmp_path / "ds", runs))
+    errors = {}
+    for label, params in (("identified", load_params(out)), ("start", START)):
+        trace = replay(params, exp)
+        errors[label] = (np.sqrt(np.mean((trace.y - exp.y) ** 2)),
+                         np.sqrt(np.mean((trace.p1 - exp.p1) ** 2)))
+        if label == "identified":
+            assert np.ptp(trace.y) > 0.04  # the square wave moves the piston stop to stop
+    assert errors["identified"][0] < 2e-4 and errors["identified"][1] < 2.5e3
+    assert errors["start"][1] > 3 * errors["identified"][1]
 
 
 def test_no_usable_experiment_names_every_procedure(tmp_path, capsys):
-    u = np.zeros(500)
-    cols = syn._columns(NOISY, u)
-    root = write_dataset(tmp_path / "ds", [(Entry("idle.csv", piston="free"), cols)])
+    idle = {"name": "idle", "kind": "open_loop", "role": "train", "duration": 0.5,
+            "voltage": {"signal": "hold", "level": 0.0}}
+    root = syn.record(NOISY, [idle], tmp_path / "ds").root
     out = tmp_path / "p.yaml"
     assert main(["identify", str(root), "--out", str(out)]) == 2
     err = capsys.readouterr().err
@@ -152,10 +241,9 @@ def test_no_usable_experiment_names_every_procedure(tmp_path, capsys):
 
 
 def test_too_few_voltages_and_a_short_sweep_are_named(tmp_path):
-    ds = _write(tmp_path, [
-        (Entry("c1.csv", piston="locked"), syn.charge_discharge(NOISY, 1.0, 1.0, 1.0)),
-        (Entry("c2.csv", piston="locked"), syn.charge_discharge(NOISY, 2.0, 1.0, 1.0)),
-        (Entry("sw.csv", piston="locked"), syn.valve_sweep(NOISY, f1=20.0, duration=3.0))])
+    ds = syn.record(NOISY, [syn.charge_discharge(1.0, 1.0, 1.0, name="c1"),
+                            syn.charge_discharge(2.0, 1.0, 1.0, name="c2"),
+                            syn.valve_sweep(f1=20.0, duration=3.0, name="sw")], tmp_path / "ds")
     with pytest.raises(DatasetError, match=r"flow map: .* 4 distinct voltage\(s\)"):
         identify(ds, procedures=["flow_map"], required=["flow_map"])
     with pytest.raises(DatasetError, match=r"valve dynamics: the sweep\(s\) sw reach 2\d Hz"):
@@ -166,12 +254,9 @@ def test_too_few_voltages_and_a_short_sweep_are_named(tmp_path):
 
 
 def test_friction_test_released_at_once_is_skipped_with_the_reason(tmp_path):
-    held = syn.friction_test(NOISY, 1.0, 6.93, ramp_rate=1e7)  # load gone in one sample
-    ramped = [syn.friction_test(NOISY, p1, p2) for p1, p2 in ENTRY[3:6]]
-    ds = _write(tmp_path, [(Entry("jump.csv", extra={"regulated": True}), held)]
-                + [(Entry(f"r{i}.csv", extra={"regulated": True}), c)
-                   for i, c in enumerate(ramped)])
-    res = identify(ds, procedures=["friction"])
+    held = syn.friction_test(1.0, 6.93, ramp_rate=1e7, name="jump")  # load gone in one sample
+    ramped = [syn.friction_test(p1, p2) for p1, p2 in ENTRY[3:6]]
+    res = identify(syn.record(NOISY, [held, *ramped], tmp_path / "ds"), procedures=["friction"])
     notes = " ".join(res.friction.skipped)
     assert "test jump" in notes and "release the piston progressively" in notes
     assert "exit phase planes not identified" in notes

@@ -1,4 +1,5 @@
-"""controller + actuator_sim in their own processes (real time, namespace /loop)."""
+"""controller + actuator_sim in their own processes (real time, namespace /loop); the
+controller's run-time parameters in-process."""
 
 from __future__ import annotations
 
@@ -7,7 +8,11 @@ import time
 
 import numpy as np
 import pytest
+from rclpy.parameter import Parameter
 from ros_probe import Probe
+from std_msgs.msg import Float64
+
+from jetpipe_ros.nodes.controller import Controller
 
 NS = "/loop"
 STARTUP = 30.0  # [s] the first numba compile of the kernel takes seconds
@@ -29,7 +34,7 @@ def loop(module_launch):
 @pytest.fixture(scope="module")
 def probe(loop, ros_context):
     probe = Probe(ros_context, namespace=NS)
-    probe.listen("position", "voltage_cmd")
+    probe.listen("position", "voltage_cmd", "joint_states")
     probe.repeat(0.05)  # re-publishes probe.command: the setpoint
     probe.command["position_setpoint"] = 0.0
     assert probe.spin_until(lambda: len(probe.messages("voltage_cmd")) > 100, 20.0), \
@@ -49,15 +54,18 @@ def _settling_time(t: np.ndarray, y: np.ndarray, target: float) -> float:
 
 
 def test_step_of_10mm_settles(probe):
+    """Timed by the simulator's sample stamps (joint_states), not by when this busy test
+    process happened to receive the messages."""
     probe.spin_for(1.0)  # at rest at 0
     t0 = time.monotonic()
     probe.command["position_setpoint"] = 0.01
     probe.publish("position_setpoint", 0.01)
     probe.spin_for(2.5)
-    log = probe.received["position"]
-    t = np.array([s for s, _ in log if s >= t0])
-    y = np.array([m.data for s, m in log if s >= t0])
+    joints = probe.messages("joint_states", t0)
+    t = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in joints])
+    y = np.array([m.position[0] for m in joints])
     assert y.size > 500  # of ~2500; a busy test process drops some
+    assert np.all(np.diff(t) > 0.0)
     assert _settling_time(t, y, 0.01) < SETTLE
     assert np.max(y) < 0.01 + 1e-3  # overshoot below 1 mm
     u = [m.data for m in probe.messages("voltage_cmd", t0)]
@@ -82,3 +90,34 @@ def test_setpoint_outside_stroke_is_clamped_and_warned(loop, probe):
     probe.command["position_setpoint"] = -0.01
     probe.spin_for(1.5)
     assert abs(probe.messages("position")[-1].data + 0.01) < BAND  # still in control
+
+
+def test_gains_and_enabled_change_at_run_time(ros_context, monkeypatch):
+    """Parameters set while running act from the next position: new gains (the integral kept),
+    a bad gain refused naming it, kd through the filtered measurement, enabled false silent."""
+    node = Controller(context=ros_context)
+    try:
+        sent = []
+        monkeypatch.setattr(node._pub, "publish", lambda msg: sent.append(msg.data))
+        node._on_setpoint(Float64(data=0.001))
+        node._on_position(Float64(data=0.0))
+        assert sent[-1] == pytest.approx(300.0 * 0.001 + 20.0 * 0.001 * 1e-3)  # defaults
+        ok = node.set_parameters([Parameter("kp", value=100.0), Parameter("ki", value=50.0)])
+        assert all(r.successful for r in ok)
+        node._on_position(Float64(data=0.0))
+        assert sent[-1] == pytest.approx(100.0 * 0.001 + 50.0 * 2 * 0.001 * 1e-3)
+        bad = node.set_parameters([Parameter("kp", value=-1.0)])[0]
+        assert not bad.successful and "kp" in bad.reason
+        assert node.pid.config.kp == 100.0
+        assert node.set_parameters([Parameter("kd", value=2.0)])[0].successful
+        node._on_position(Float64(data=0.0005))  # moving towards the setpoint: damped
+        alpha = 1e-3 / (0.005 + 1e-3)
+        rate = alpha * 0.0005 / 1e-3
+        assert sent[-1] == pytest.approx(100.0 * 0.0005 + 50.0 * 1e-3 * (0.002 + 0.0005)
+                                         - 2.0 * rate)
+        assert node.set_parameters([Parameter("enabled", value=False)])[0].successful
+        count = len(sent)
+        node._on_position(Float64(data=0.0))
+        assert len(sent) == count
+    finally:
+        node.destroy_node()

@@ -6,6 +6,7 @@ record mode on a real-time stream."""
 from __future__ import annotations
 
 import json
+import re
 import signal
 import time
 
@@ -202,8 +203,11 @@ def test_composed_campaign_names_the_node_of_a_bad_parameter(launch, tmp_path):
 
 
 def test_record_mode_keeps_a_real_time_stream(launch, tmp_path):
+    """Of the samples the simulator published, the recorder keeps 99 %. The simulator catches
+    up stalls of up to 1 s (max_catch_up) and reports what it had to drop beyond (its final
+    report): those gaps in the stamps are not the recorder's (a loaded machine makes some)."""
     sim = launch(["-m", "jetpipe_ros.nodes.actuator_sim", "--ros-args", "-r", "__ns:=/rt",
-                  "-p", "report_period:=0.0"])
+                  "-p", "report_period:=0.0", "-p", "max_catch_up:=1000"])
     sim.wait_for("started:", STARTUP)
     bag = tmp_path / "rt"
     rec = launch(["-m", "jetpipe_ros.nodes.id_recorder", "--ros-args", "-r", "__ns:=/rt",
@@ -215,12 +219,16 @@ def test_record_mode_keeps_a_real_time_stream(launch, tmp_path):
     stamps = _joint_stamps(bag)
     assert stamps.size > 1000  # 5 s at 1 kHz, less the discovery (slow on a loaded machine)
     expected = (stamps[-1] - stamps[0]) // 1_000_000 + 1
-    assert stamps.size / expected > 0.99  # lenient: the machine is shared; bench/ measures
     line = rec.wait_for("joint_states samples (kept", 1.0)
     assert f"recorded {stamps.size} of {expected}" in line
+    sim.popen.send_signal(signal.SIGTERM)
+    total = sim.wait_for("total: stepped", 20.0)
+    dropped = int(re.search(r"\((\d+) samples dropped\)", total).group(1))
+    # At most half the window counted as the simulator's drops; bench/ measures 100.000 % kept.
+    assert stamps.size / (expected - min(dropped, expected // 2)) > 0.99
 
 
-def test_export_refuses_a_bag_without_campaign(tmp_path):
+def test_export_refuses_a_directory_without_metadata(tmp_path):
     with pytest.raises(BagError, match="not a rosbag2 bag"):
         export_bag(tmp_path, tmp_path / "out")
 

@@ -6,8 +6,7 @@ from jetpipe_ros.campaign.errors import CampaignError
 from jetpipe_ros.campaign.offline import run_campaign_offline
 from jetpipe_ros.campaign.plan import (Campaign, Command, ExperimentSpec, Phase, SignalSpec,
                                        default_campaign, load_campaign, parse_campaign)
-from jetpipe_ros.campaign.rig import reconfigure
 
 __all__ = ["Campaign", "CampaignError", "Command", "ExperimentSpec", "Phase", "SignalSpec",
-           "default_campaign", "load_campaign", "parse_campaign", "reconfigure",
+           "default_campaign", "load_campaign", "parse_campaign",
            "run_campaign_offline"]

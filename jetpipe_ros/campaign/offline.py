@@ -3,11 +3,12 @@
 The runner follows :meth:`Campaign.schedule` exactly as the ``id_recorder`` node does through
 the topics: one actuator for the whole campaign, its state carried from phase to phase, the
 piston clamped and released and the chambers' regulators switched between phases
-(:meth:`~jetpipe_ros.campaign.Phase.rig_changes`, :func:`~jetpipe_ros.campaign.rig.reconfigure`),
+(:meth:`~jetpipe_ros.campaign.Phase.rig_changes`,
+:meth:`~jetpipe_ros.model.Actuator.reconfigure`),
 closed-loop phases through the same :class:`~jetpipe_ros.control.Pid` as the ``controller``
-node (one controller for the campaign, its state carried from one closed-loop phase to the next,
-as the node's). Row k of an experiment's CSV holds what the sensors read at t_k = k dt and the command
-applied over [t_k, t_k+1), the convention of :func:`jetpipe_ros.model.simulate`.
+node (one controller for the campaign, its state carried from one closed-loop phase to the
+next, as the node's). Row k of an experiment's CSV holds what the sensors read at t_k = k dt and
+the command applied over [t_k, t_k+1), the convention of :func:`jetpipe_ros.model.simulate`.
 """
 
 from __future__ import annotations
@@ -17,7 +18,6 @@ from pathlib import Path
 import numpy as np
 
 from jetpipe_ros.campaign.plan import Campaign, Phase
-from jetpipe_ros.campaign.rig import reconfigure
 from jetpipe_ros.control import Pid, PidConfig
 from jetpipe_ros.dataset import Entry, write_dataset
 from jetpipe_ros.model import Actuator, ModelParams
@@ -92,7 +92,7 @@ def run_campaign_offline(params: ModelParams, campaign: Campaign, out_dir: str |
     for phase in campaign.schedule():
         changes = phase.rig_changes(act.params)
         if changes:  # row 0 of the phase is the reading before the switch, as in the node
-            reconfigure(act, changes)
+            act.reconfigure(changes)
         cols = _run_phase(act, pid, phase, out)
         exp = phase.experiment
         if exp is not None:

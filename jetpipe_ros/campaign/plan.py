@@ -62,6 +62,7 @@ import yaml
 from jetpipe_ros.campaign.errors import CampaignError
 from jetpipe_ros.campaign.signals import GENERATORS, samples
 from jetpipe_ros.model.params import SPECS
+from jetpipe_ros.package_data import share_file
 
 #: Nominal piston area S [m^2] and half stroke [m] (DESIGN.md s.2): the regulated rig's
 #: initial load S (p1 - p2) and the end stops it places the piston at.
@@ -198,7 +199,7 @@ class Phase:
     def rig(self) -> dict[str, Any]:
         """The test rig's model parameters over the phase: piston clamp, regulators and, when
         regulated, their pressures [Pa] and the piston's place [m] (applied with
-        :func:`~jetpipe_ros.campaign.rig.reconfigure` or the simulator's parameters)."""
+        :meth:`~jetpipe_ros.model.Actuator.reconfigure` or the simulator's parameters)."""
         out: dict[str, Any] = {"mechanics.locked": self.locked,
                                "chamber.regulated": self.regulated is not None}
         if self.regulated is not None:
@@ -444,6 +445,4 @@ def load_campaign(path: str | Path) -> Campaign:
 
 def default_campaign() -> Campaign:
     """The package's ``config/campaign.yaml`` (the paper's campaign)."""
-    from jetpipe_ros.nodes.interface import share_file  # finds config/ wherever installed
-
     return load_campaign(share_file("config/campaign.yaml"))

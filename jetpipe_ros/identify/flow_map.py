@@ -8,7 +8,9 @@ q(-u_eq, p2), so both chambers give samples of the same map. In steady state the
 voltage is the command clipped to the jet-pipe's travel, u_eq = clip(u, -2.8, 3.0) V (DESIGN.md
 s.2): the map is fitted against u_eq, so a command beyond the travel (e.g. 3.4 V) adds samples at
 the travel's end. The fit is Eq. 8's fifth-order polynomial in (u [V], p [bar]) by linear least
-squares, in g/s as the paper writes its coefficients.
+squares, in g/s as the paper writes its coefficients, on the regressors of the model's own
+Eq. 8 (:func:`jetpipe_ros.model.flow.flow_matrix`), so the fitted coefficients mean exactly
+what the simulator does with them.
 
 Samples at or below 1.05 bar are left out: a chamber vented down to atmosphere has no outflow
 whatever the polynomial says (the model's vent floor), which is not the valve's map.
@@ -25,10 +27,10 @@ import numpy as np
 from jetpipe_ros.dataset import DatasetError
 from jetpipe_ros.identify.differentiate import derivative
 from jetpipe_ros.identify.experiments import Recording
+from jetpipe_ros.model.chamber import chamber_volumes
+from jetpipe_ros.model.flow import KG_PER_G, flow_matrix, mass_flow
 from jetpipe_ros.model.valve import U_EQ_MAX, U_EQ_MIN
 
-#: Exponents (of u, of p) of Eq. 8's 21 monomials, in the paper's order.
-EXPONENTS = [(d - j, j) for d in range(6) for j in range(d + 1)]
 #: Derivative window [s]: 21 ms keeps the curvature bias of a 3.4 V charge below 1e-5 kg/s.
 WINDOW = 0.021
 #: Time after a command change before the valve counts as settled [s] (5 % settling 25.5 ms).
@@ -37,19 +39,9 @@ SETTLE = 0.05
 P_FLOOR_BAR = 1.05
 #: Fewest distinct equivalent voltages for a fifth-order polynomial in u.
 MIN_LEVELS = 6
-
-
-def monomials(u: np.ndarray, p_bar: np.ndarray) -> np.ndarray:
-    """(n, 21) matrix of Eq. 8's monomials u^i p^j for voltages ``u`` [V], pressures [bar]."""
-    u = np.asarray(u, dtype=float)[:, None]
-    p = np.asarray(p_bar, dtype=float)[:, None]
-    i, j = np.array(EXPONENTS).T
-    return u ** i * p ** j
-
-
-def evaluate(coefficients: Sequence[float], u: np.ndarray, p_bar: np.ndarray) -> np.ndarray:
-    """Eq. 8 with ``coefficients`` (paper order, g/s): mass flow [kg/s]."""
-    return monomials(np.atleast_1d(u), np.atleast_1d(p_bar)) @ np.asarray(coefficients) * 1e-3
+#: Voltage step of the central difference giving the map's slope dq/du in :func:`invert` [V]
+#: (relative error ~1e-8 on a fifth-order polynomial).
+SLOPE_STEP = 1e-4
 
 
 @dataclass
@@ -82,11 +74,12 @@ class FlowMapResult:
 
 
 def chamber_capacities(params: Mapping[str, Any], y: float) -> tuple[float, float]:
-    """V / (r T) of chambers 1 and 2 at piston position ``y`` [m] (Eq. 7, 13) [kg/Pa]."""
+    """V / (r T) of chambers 1 and 2 at piston position ``y`` [m] (Eq. 7, volumes of Eq. 13)
+    [kg/Pa]."""
     rt = params["chamber.gas_constant"] * params["chamber.temperature"]
-    area = params["chamber.piston_area"]
-    return ((area * y + params["chamber.dead_volume_1"]) / rt,
-            (-area * y + params["chamber.dead_volume_2"]) / rt)
+    vol1, vol2 = chamber_volumes(y, params["chamber.piston_area"],
+                                 params["chamber.dead_volume_1"], params["chamber.dead_volume_2"])
+    return vol1 / rt, vol2 / rt
 
 
 def held_mask(u: np.ndarray, dt: float, settle: float, tail: float) -> np.ndarray:
@@ -135,11 +128,11 @@ def identify_flow_map(recs: list[Recording], params: Mapping[str, Any]) -> FlowM
             f"flow map: the charge/discharge tests ({', '.join(r.name for r in recs)}) hold "
             f"{len(levels)} distinct voltage(s) {levels} in both chambers; Eq. 8 needs at least "
             f"{MIN_LEVELS} (the paper: |u| = 0, 0.29, 0.57, 1.15, 1.73, 2.29, 2.86, 3.4 V)")
-    basis = monomials(s.u, s.p_bar)
+    basis = flow_matrix(s.u, s.p_bar)
     scale = np.linalg.norm(basis, axis=0)
-    sol, *_ = np.linalg.lstsq(basis / scale, s.q * 1e3, rcond=None)
+    sol, *_ = np.linalg.lstsq(basis / scale, s.q / KG_PER_G, rcond=None)
     coef = sol / scale
-    resid = basis @ coef * 1e-3 - s.q
+    resid = basis @ coef * KG_PER_G - s.q
     return FlowMapResult(coefficients=[float(c) for c in coef], samples=s,
                          experiments=[r.name for r in recs],
                          max_error=float(np.max(np.abs(resid))),
@@ -150,18 +143,18 @@ def invert(coefficients: Sequence[float], q: np.ndarray, p_bar: np.ndarray,
            start: np.ndarray, iterations: int = 20) -> np.ndarray:
     """Equivalent voltage u [V] with Eq. 8 q(u, p) = ``q`` [kg/s] at ``p_bar`` [bar].
 
-    Newton's method from ``start`` [V], kept within the jet-pipe's travel [-2.8, 3.0] V, where
-    the map rises with u; where no voltage in the travel gives ``q`` the end of the travel is
-    returned.
+    Newton's method from ``start`` [V] on the model's map (:func:`~jetpipe_ros.model.flow.
+    mass_flow`, slope by a central difference over :data:`SLOPE_STEP`), kept within the
+    jet-pipe's travel [-2.8, 3.0] V, where the map rises with u; where no voltage in the travel
+    gives ``q`` the end of the travel is returned.
     """
-    coef = np.asarray(coefficients) * 1e-3
-    i, j = np.array(EXPONENTS).T
-    p = np.asarray(p_bar, dtype=float)[:, None]
+    coef = np.asarray(coefficients, dtype=float)
+    p = np.asarray(p_bar, dtype=float)
     u = np.clip(np.asarray(start, dtype=float), U_EQ_MIN, U_EQ_MAX)
     for _ in range(iterations):
-        uc = u[:, None]
-        value = (uc ** i * p ** j) @ coef - q
-        slope = (i * uc ** np.maximum(i - 1, 0) * p ** j) @ coef
+        value = mass_flow(coef, u, p) - q
+        slope = (mass_flow(coef, u + SLOPE_STEP, p) - mass_flow(coef, u - SLOPE_STEP, p)) \
+            / (2.0 * SLOPE_STEP)
         step = value / np.where(slope > 1e-6, slope, 1e-6)
         u = np.clip(u - step, U_EQ_MIN, U_EQ_MAX)
     return u

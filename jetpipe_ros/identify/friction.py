@@ -12,11 +12,13 @@ with velocity and acceleration from the zero-phase differentiator (:mod:`.differ
 pressures smoothed over the same window and M the moving mass of the starting parameters. The
 paper reads F_S at the breakaway instant, v_s where the Stribeck dip ends, and F_v, F_C from a
 line through the data outside the Stribeck zone (Sec. 4.2.3). Here those readings only start a
-joint nonlinear least-squares fit of Eq. 18 (scipy.optimize.least_squares) to every sliding
-sample, which uses the whole record instead of three points. Entry phase (p2 > p1, v < 0) and
-exit phase (p1 > p2, v > 0) are fitted apart, each parameter is fitted over the test pressures
-with a plane c0 + c1 p1 + c2 p2 (p in bar, Eq. 20-27), and the planes' largest relative error
-over the tests is reported (the paper: under 5 %).
+joint nonlinear least-squares fit of Eq. 18 (the model's own
+:func:`~jetpipe_ros.model.friction.sliding_friction`, scipy.optimize.least_squares) to every
+sliding sample, which uses the whole record instead of three points. Entry phase (p2 > p1,
+v < 0) and exit phase (p1 > p2, v > 0) are fitted apart, each parameter is fitted over the test
+pressures with a plane c0 + c1 p1 + c2 p2 (p in bar, Eq. 20-27; regressors from the model's
+:func:`~jetpipe_ros.model.friction.plane_basis`), and the planes' largest relative error over
+the tests is reported (the paper: under 5 %).
 
 A test gives parameters only if it slides over a wide enough velocity range to separate the
 Stribeck, Coulomb and viscous parts (released progressively, not in one jump); a phase needs
@@ -35,6 +37,7 @@ from scipy import optimize, signal
 from jetpipe_ros.dataset import DatasetError
 from jetpipe_ros.identify.differentiate import derivative, window_samples
 from jetpipe_ros.identify.experiments import Recording
+from jetpipe_ros.model.friction import plane_basis, sliding_friction
 from jetpipe_ros.model.params import FRICTION_PLANES
 
 QUANTITIES = ("breakaway", "stribeck_velocity", "viscous", "coulomb")
@@ -73,11 +76,6 @@ class FrictionResult:
     tests: list[FrictionTest]
     max_relative_error: dict[str, dict[str, float]]  #: phase -> quantity -> plane error [-]
     skipped: list[str] = field(default_factory=list)  #: tests or phases left out, and why
-
-
-def stribeck(v: np.ndarray, f_s: float, v_s: float, f_v: float, f_c: float) -> np.ndarray:
-    """Eq. 18: sliding friction [N] at velocity ``v`` [m/s] (signed parameters)."""
-    return f_c + (f_s - f_c) * np.exp(-(v / v_s) ** 2) + f_v * v
 
 
 def friction_force(rec: Recording, params: Mapping[str, Any]
@@ -128,7 +126,7 @@ def fit_test(rec: Recording, params: Mapping[str, Any]) -> FrictionTest:
     start = [max(np.median(mag[slow]), f_c0 + 1.0), 0.01, max(f_v0, 1.0), max(f_c0, 1.0)]
 
     def residual(x: np.ndarray) -> np.ndarray:
-        return stribeck(speed, *x) - mag
+        return sliding_friction(speed, *x) - mag
 
     fit = optimize.least_squares(residual, start, bounds=([0.0, 1e-4, 0.0, 0.0],
                                                           [1e4, 0.5, 1e5, 1e4]),
@@ -143,7 +141,8 @@ def fit_test(rec: Recording, params: Mapping[str, Any]) -> FrictionTest:
 def fit_planes(tests: list[FrictionTest]) -> tuple[dict[str, list[float]], dict[str, float]]:
     """Planes c0 + c1 p1 + c2 p2 of each quantity over ``tests`` and their largest relative
     error; raise ValueError if the test pressures are collinear."""
-    basis = np.array([[1.0, t.p1_bar, t.p2_bar] for t in tests])
+    basis = np.column_stack(plane_basis(np.array([t.p1_bar for t in tests]),
+                                        np.array([t.p2_bar for t in tests])))
     if np.linalg.matrix_rank(basis, tol=1e-3) < 3:
         raise ValueError("test pressures are collinear")
     planes, errors = {}, {}

@@ -11,10 +11,11 @@ from typing import Any
 
 import numpy as np
 
-from jetpipe_ros.identify.flow_map import evaluate
 from jetpipe_ros.identify.friction import QUANTITIES, paper_planes
 from jetpipe_ros.identify.identify import Identification
 from jetpipe_ros.identify.valve import peak, response
+from jetpipe_ros.model.flow import mass_flow
+from jetpipe_ros.model.friction import plane
 from jetpipe_ros.model.params import FLOW_COEFFICIENTS, FRICTION_UNITS
 from jetpipe_ros.model.valve import jetpipe_position
 
@@ -62,8 +63,9 @@ def summary(ident: Identification) -> str:
         for phase, errors in fr_res.max_relative_error.items():
             n = sum(t.phase == phase for t in fr_res.tests)
             errs = ", ".join(f"{q} {100 * e:.1f} %" for q, e in errors.items())
-            lines.append(f"- friction {phase} planes (Eq. {'20-23' if phase == 'entry' else '24-27'}"
-                         f") from {n} test(s): plane max relative error {errs} (paper: < 5 %)")
+            eq = "20-23" if phase == "entry" else "24-27"
+            lines.append(f"- friction {phase} planes (Eq. {eq}) from {n} test(s): plane max "
+                         f"relative error {errs} (paper: < 5 %)")
         for note in fr_res.skipped:
             lines.append(f"  note: {note}")
     for rp in ident.replays:
@@ -108,10 +110,10 @@ def figures(ident: Identification) -> list[tuple[str, str]]:
             if not m.any():
                 continue
             p = np.linspace(s.p_bar[m].min(), s.p_bar[m].max(), 50)
-            line, = ax.plot(p, evaluate(ident.flow.coefficients, np.full(50, level), p) * 1e3,
+            line, = ax.plot(p, mass_flow(ident.flow.coefficients, np.full(50, level), p) * 1e3,
                             label=f"{level:g} V")
             ax.plot(s.p_bar[m][::20], s.q[m][::20] * 1e3, ".", ms=2, color=line.get_color())
-            ax.plot(p, evaluate(FLOW_COEFFICIENTS, np.full(50, level), p) * 1e3, ":",
+            ax.plot(p, mass_flow(FLOW_COEFFICIENTS, np.full(50, level), p) * 1e3, ":",
                     color=line.get_color())
         ax.set(xlabel="chamber pressure [bar]", ylabel="mass flow [g/s]",
                title="Flow map: samples (dots), identified Eq. 8 (lines), paper (dotted)")
@@ -154,7 +156,8 @@ def figures(ident: Identification) -> list[tuple[str, str]]:
                 meas = np.array([t.values[q] for t in tests])
                 for label, c, col in (("identified plane", fr.planes[phase][q], "C0"),
                                       ("paper plane", paper_planes(phase)[q], "C3")):
-                    pred = np.array([c[0] + c[1] * t.p1_bar + c[2] * t.p2_bar for t in tests])
+                    pred = np.array([plane(np.asarray(c), t.p1_bar, t.p2_bar)
+                                     for t in tests])
                     ax.plot(meas, pred, mark, ms=4, mfc="none" if col == "C3" else col,
                             color=col, label=f"{phase}, {label}")
             lim = ax.get_xlim()

@@ -37,7 +37,8 @@ from scipy import fft, optimize, signal
 from jetpipe_ros.dataset import DatasetError
 from jetpipe_ros.identify.differentiate import derivative, derivative_gain
 from jetpipe_ros.identify.experiments import Recording
-from jetpipe_ros.identify.flow_map import chamber_capacities, evaluate, invert
+from jetpipe_ros.identify.flow_map import chamber_capacities, invert
+from jetpipe_ros.model.flow import mass_flow
 from jetpipe_ros.model.params import ModelParams
 from jetpipe_ros.model.valve import U_EQ_MAX, U_EQ_MIN, valve_tf
 
@@ -125,7 +126,7 @@ def noise_whitening(coefficients: Sequence[float], capacity: float, u: np.ndarra
     """
     p_bar = float(np.mean(p)) * 1e-5
     u0 = float(np.mean(u))
-    b = (evaluate(coefficients, u0, p_bar + 0.01) - evaluate(coefficients, u0, p_bar - 0.01)
+    b = (mass_flow(coefficients, u0, p_bar + 0.01) - mass_flow(coefficients, u0, p_bar - 0.01)
          )[0] / 2e3
     f = fft.rfftfreq(u.size, dt)
     d = 2.0 * np.pi * f * derivative_gain(np.maximum(f, 1e-9), dt, WINDOW)
@@ -190,7 +191,7 @@ def identify_valve(recs: list[Recording], params: ModelParams,
         out = []
         for u, sign, p_bar, flow, w in chambers:
             u_eq = np.clip(sign * chain_output(q, u, dt), U_EQ_MIN, U_EQ_MAX)
-            err = evaluate(coefficients, u_eq, p_bar) - flow
+            err = mass_flow(coefficients, u_eq, p_bar) - flow
             err[:skip] = 0.0
             spec = fft.rfft(err) * w
             out += [spec.real, spec.imag]

@@ -2,7 +2,8 @@
 
 :class:`Actuator` holds one actuator's state and advances it sample by sample (the ROS node) or
 over a whole command sequence (the batch simulator, identification and diagnosis), always through
-the same compiled kernel.
+the same compiled kernel; :meth:`Actuator.reconfigure` switches parameters on a running model as
+a test rig does (piston clamp, chamber regulators).
 """
 
 from __future__ import annotations
@@ -17,6 +18,12 @@ from jetpipe_ros.model import kernel
 from jetpipe_ros.model.flow import P_SUPPLY_NOMINAL
 from jetpipe_ros.model.params import ModelParams
 from jetpipe_ros.model.valve import discretise_valve
+
+
+#: Parameters whose change, with the regulators on, re-imposes the chamber pressures and the
+#: piston's place (:meth:`Actuator.reconfigure`).
+REGULATOR_KEYS = ("chamber.regulated", "chamber.initial_pressure_1",
+                  "chamber.initial_pressure_2", "mechanics.initial_position")
 
 
 def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
@@ -132,6 +139,44 @@ class Actuator:
         x[kernel.STUCK] = 1.0
         self.state = x
         self.ring = np.zeros(c.delay_steps + 1)
+
+    def reconfigure(self, changes: Mapping[str, Any]) -> None:
+        """Apply parameter ``changes`` in place, keeping the state, as a test rig's switch does.
+
+        A real rig clamps the piston (constant-volume tests) or puts regulators on the chambers
+        between experiments without resetting anything else. Position, velocity, pressures,
+        temperatures, friction state, sample count and the sensor noise sequence carry over. If
+        the change alters the valve chain's order or delay (e.g. enabling ``valve_lag`` or
+        changing ``valve.delay``), the valve chain restarts at rest.
+
+        The regulated rig (the friction tests of the paper's Fig. 15) also acts on the state:
+        with the regulators on after the change and one of :data:`REGULATOR_KEYS` changed, the
+        chamber pressures [Pa] are set to the regulators' (``chamber.initial_pressure_1``,
+        ``_2``) and the piston is placed at rest at ``mechanics.initial_position`` [m], as the
+        rig's hydraulic cylinder does. Raises :class:`~jetpipe_ros.model.ParameterError` on a
+        bad value, leaving the actuator unchanged.
+        """
+        params = self.params.with_values(changes)
+        constants = build_constants(params)
+        state, ring = self.state, self.ring
+        size = kernel.VALVE + constants.valve_b.shape[0]
+        if state.shape[0] != size or ring.shape[0] != constants.delay_steps + 1:
+            kept = state[:kernel.VALVE].copy()
+            state = np.zeros(size)
+            state[:kernel.VALVE] = kept
+            state[kernel.PLAY:kernel.VALVE] = 0.0
+            state[kernel.HEAD] = 0.0
+            ring = np.zeros(constants.delay_steps + 1)
+        if params["chamber.regulated"] and any(key in changes for key in REGULATOR_KEYS):
+            state = state.copy()
+            state[kernel.P1] = params["chamber.initial_pressure_1"]
+            state[kernel.P2] = params["chamber.initial_pressure_2"]
+            state[kernel.Y] = min(max(params["mechanics.initial_position"], -constants.y_max),
+                                  constants.y_max)
+            state[kernel.V] = 0.0
+            state[kernel.STUCK] = 1.0
+        self.params, self.constants = params, constants
+        self.state, self.ring = state, ring
 
     @property
     def time(self) -> float:

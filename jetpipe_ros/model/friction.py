@@ -9,8 +9,6 @@ are evaluated at the mean pressure, and each parameter is kept on its physical s
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
@@ -24,8 +22,21 @@ MIN_STRIBECK = 1e-4
 
 
 @njit(cache=True, error_model="numpy")
-def _plane(planes: np.ndarray, phase: int, row: int, a: float, b: float) -> float:
-    return planes[phase, row, 0] + planes[phase, row, 1] * a + planes[phase, row, 2] * b
+def plane_basis(p1_bar: float | np.ndarray, p2_bar: float | np.ndarray
+                ) -> tuple[float | np.ndarray, ...]:
+    """The terms (1, p1, p2) of a friction plane c0 + c1 p1 + c2 p2 (Eq. 20-27) at chamber
+    pressures ``p1_bar``, ``p2_bar`` [bar]: floats or equal-shape arrays (the regressors of the
+    planes' least-squares fit in :mod:`jetpipe_ros.identify.friction`)."""
+    return (p1_bar * 0.0 + 1.0, p1_bar, p2_bar)
+
+
+@njit(cache=True, error_model="numpy")
+def plane(c: np.ndarray, p1_bar: float | np.ndarray, p2_bar: float | np.ndarray
+          ) -> float | np.ndarray:
+    """One of Eq. 20-27: c0 + c1 p1 + c2 p2 for coefficients ``c`` (3,) at chamber pressures
+    ``p1_bar``, ``p2_bar`` [bar] (floats or arrays), in the unit of the parameter."""
+    t = plane_basis(p1_bar, p2_bar)
+    return c[0] * t[0] + c[1] * t[1] + c[2] * t[2]
 
 
 @njit(cache=True, error_model="numpy")
@@ -42,10 +53,10 @@ def friction_parameters(planes: np.ndarray, direction: float, p1: float, p2: flo
     # Fitted region: exit where p1 > p2, entry where p2 > p1; elsewhere the mean pressure.
     if (phase == 1 and a <= b) or (phase == 0 and b <= a):
         a = b = 0.5 * (a + b)
-    f_s = _plane(planes, phase, BREAKAWAY, a, b)
-    v_s = _plane(planes, phase, STRIBECK, a, b)
-    f_v = _plane(planes, phase, VISCOUS, a, b)
-    f_c = _plane(planes, phase, COULOMB, a, b)
+    f_s = plane(planes[phase, BREAKAWAY], a, b)
+    v_s = plane(planes[phase, STRIBECK], a, b)
+    f_v = plane(planes[phase, VISCOUS], a, b)
+    f_c = plane(planes[phase, COULOMB], a, b)
     s = 1.0 if phase == 1 else -1.0
     f_c = s * max(s * f_c, MIN_COULOMB)
     f_s = s * max(s * f_s, s * f_c)
@@ -55,15 +66,18 @@ def friction_parameters(planes: np.ndarray, direction: float, p1: float, p2: flo
 
 
 @njit(cache=True, error_model="numpy")
-def stribeck_force(v: float, f_s: float, v_s: float, f_c: float) -> float:
-    """Eq. 18 without the viscous term: F_C + (F_S - F_C) exp(-(v/v_s)^2) [N]."""
+def stribeck_force(v: float | np.ndarray, f_s: float, v_s: float, f_c: float) -> float | np.ndarray:
+    """Eq. 18 without the viscous term: F_C + (F_S - F_C) exp(-(v/v_s)^2) [N] at velocity
+    ``v`` [m/s] (a float, or an array). The kernel adds the viscous term F_v v implicitly."""
     r = v / v_s
-    return f_c + (f_s - f_c) * math.exp(-r * r)
+    return f_c + (f_s - f_c) * np.exp(-r * r)
 
 
 @njit(cache=True, error_model="numpy")
-def sliding_friction(v: float, f_s: float, v_s: float, f_v: float, f_c: float) -> float:
-    """Eq. 18: friction force [N] while sliding at velocity ``v`` [m/s]."""
+def sliding_friction(v: float | np.ndarray, f_s: float, v_s: float, f_v: float, f_c: float
+                     ) -> float | np.ndarray:
+    """Eq. 18: friction force [N] while sliding at velocity ``v`` [m/s] (a float, or an array:
+    the identification fits it to the sliding samples of a friction test)."""
     return stribeck_force(v, f_s, v_s, f_c) + f_v * v
 
 

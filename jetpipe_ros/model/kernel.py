@@ -51,8 +51,6 @@ N_DRIVE = 4
 OUT_T, OUT_U, OUT_Y, OUT_V, OUT_P1, OUT_P2, OUT_FRICTION, OUT_FORCE, OUT_UEQ, \
     OUT_Y_MEAS, OUT_P1_MEAS, OUT_P2_MEAS = range(12)
 N_OUT = 12
-OUTPUT_NAMES = ("t", "u", "y", "v", "p1", "p2", "friction", "force", "u_eq", "y_meas",
-                "p1_meas", "p2_meas")
 
 MIN_PRESSURE = 1.0e3  #: numerical floor on chamber pressure [Pa]
 

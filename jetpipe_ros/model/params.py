@@ -317,10 +317,6 @@ class ModelParams(Mapping[str, Any]):
     def __len__(self) -> int:
         return len(self._values)
 
-    def replace(self, **changes: Any) -> ModelParams:
-        """A copy with some parameters changed; keys use ``__`` for dots (or pass a dict)."""
-        return self.with_values({k.replace("__", "."): v for k, v in changes.items()})
-
     def with_values(self, changes: Mapping[str, Any]) -> ModelParams:
         """A copy with the given dotted-name parameters changed (validated)."""
         copy = ModelParams.__new__(ModelParams)

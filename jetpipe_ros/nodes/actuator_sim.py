@@ -50,13 +50,13 @@ from rclpy.parameter import Parameter
 from rclpy.time import Time
 from rclpy.time_source import TimeSource
 
-from jetpipe_ros.campaign.rig import reconfigure
 from jetpipe_ros.model import SPECS, Actuator, ModelParams, ParameterError
 from jetpipe_ros.model import kernel as k
 from jetpipe_ros.model.params import NODE_NAME, ParamSpec, check_value
 from jetpipe_ros.nodes import interface, process
 from jetpipe_ros.nodes.pacing import Pacer
 from jetpipe_ros.nodes.parameters import StartupError, declare, unknown_overrides, value
+from jetpipe_ros.package_data import share_file
 
 #: The node's own parameters (the model's are :data:`jetpipe_ros.model.SPECS`).
 NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
@@ -145,7 +145,7 @@ class ActuatorSim(Node):
             rate = ", lockstep (one sample per voltage_cmd)"
         self.get_logger().info(
             f"started: time_mode {opts['time_mode']}{rate}, sample time {self._dt * 1e3:g} ms, "
-            f"effects: {effects}, topic contract {interface.share_file(interface.CONTRACT)}")
+            f"effects: {effects}, topic contract {share_file(interface.CONTRACT)}")
 
     # -- start-up ---------------------------------------------------------------------------
 
@@ -227,7 +227,7 @@ class ActuatorSim(Node):
     def _apply_update(self, params: list[Parameter[Any]]) -> None:
         model = {p.name: _plain(p.value) for p in params if p.name in SPECS}
         if model:
-            reconfigure(self.actuator, model)
+            self.actuator.reconfigure(model)
             self._limit = self.actuator.params["valve.command_limit"]
             self._variance = self.actuator.constants.sigma_p ** 2
             for m in self._msg_p:

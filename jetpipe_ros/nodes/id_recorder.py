@@ -1,8 +1,9 @@
 """id_recorder: run an identification campaign through the topics and record it as a bag.
 
 Records every topic of the contract (``msg_defs/topics.yaml``) to a rosbag2 bag in MCAP
-storage (metadata version 9, :mod:`jetpipe_ros.bag`), the bag's log times being simulated time:
-the header stamp of stamped messages, the latest stamp seen for the others.
+storage (metadata version 9, or 8 with ``bag_version``: :mod:`jetpipe_ros.bag`), the bag's log
+times being simulated time: the header stamp of stamped messages, the latest stamp seen for the
+others.
 
 ``mode: campaign`` (default) runs ``campaign_file`` (default ``config/campaign.yaml``) phase by
 phase (:meth:`jetpipe_ros.campaign.Campaign.schedule`) against a simulator in lock-step
@@ -51,6 +52,7 @@ from jetpipe_ros.campaign import Campaign, CampaignError, Phase, load_campaign
 from jetpipe_ros.model.params import ParamSpec
 from jetpipe_ros.nodes import interface, process
 from jetpipe_ros.nodes.parameters import StartupError, declare, unknown_overrides, value
+from jetpipe_ros.package_data import PackageDataError, share_file
 
 NODE_NAME = "id_recorder"
 NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
@@ -60,6 +62,8 @@ NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
               "among the package's data (config/campaign_identification.yaml works wherever "
               "installed); empty: the package's config/campaign.yaml"),
     ParamSpec("bag", "", "Bag directory to create; empty: bags/campaign_<date>_<time>"),
+    ParamSpec("bag_version", 9, "rosbag2 metadata version: 9 (Jazzy and later) or 8 (also "
+              "for Humble's and Iron's ros2 bag)", "", 8, 9),
     ParamSpec("simulator_node", "actuator_sim", "Simulator node (same namespace)"),
     ParamSpec("controller_node", "controller", "Controller node (same namespace)"),
     ParamSpec("wait_timeout", 30.0, "Longest wait for the simulator and controller", "s",
@@ -109,7 +113,8 @@ class Recorder(Node):
 
         topics = interface.load_topics()
         self._names = {t.name: self.resolve_topic_name(t.name) for t in topics.values()}
-        self.bag = BagWriter(bag, {self._names[t.name]: t.type for t in topics.values()})
+        self.bag = BagWriter(bag, {self._names[t.name]: t.type for t in topics.values()},
+                             self.opts["bag_version"])
         self._now_ns = 0  # latest stamp seen [ns, simulated]
         self._last: dict[str, int] = {}  # latest stamp per stamped topic
         self._first: dict[str, int] = {}
@@ -393,8 +398,8 @@ def _campaign_path(name: str) -> Path:
     if path.is_file() or path.is_absolute():
         return path
     try:
-        return interface.share_file(name)
-    except interface.ContractError:
+        return share_file(name)
+    except PackageDataError:
         return path  # load_campaign names it as given
 
 

@@ -9,7 +9,6 @@ is made, so the contract can be read without ROS.
 from __future__ import annotations
 
 import importlib
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
@@ -18,12 +17,14 @@ from typing import Any
 
 import yaml
 
-PACKAGE = "jetpipe_ros"
+from jetpipe_ros.package_data import share_file
+
 CONTRACT = "msg_defs/topics.yaml"
 
 
 class ContractError(RuntimeError):
-    """The topic contract is missing or malformed, or names an unknown topic."""
+    """The topic contract is malformed or names an unknown topic (a missing contract file:
+    :class:`~jetpipe_ros.package_data.PackageDataError`)."""
 
 
 @dataclass(frozen=True)
@@ -64,39 +65,6 @@ class Topic:
         """The Python message class (imports the message package)."""
         package, _, name = self.type.split("/")
         return getattr(importlib.import_module(f"{package}.msg"), name)
-
-
-def share_file(relative: str) -> Path:
-    """Find a data file of the package (``config/...``, ``msg_defs/...``) wherever it lives.
-
-    Looked for, first hit wins: beside the source package (a repo checkout, ``pip install -e``,
-    ``colcon build --symlink-install``); in the ``share/jetpipe_ros`` of the install prefix the
-    package was imported from (``colcon build``, ``pip install .``); in ``sys.prefix``; through
-    the ament index.
-    """
-    here = Path(__file__).resolve().parent.parent  # the jetpipe_ros package directory
-    candidates = [here.parent / relative]
-    if len(here.parents) > 3:  # <prefix>/lib/pythonX.Y/site-packages/jetpipe_ros
-        candidates.append(here.parents[3] / "share" / PACKAGE / relative)
-    candidates.append(Path(sys.prefix) / "share" / PACKAGE / relative)
-    ament = _ament_share()
-    if ament is not None:
-        candidates.append(ament / relative)
-    for path in candidates:
-        if path.is_file():
-            return path
-    raise ContractError(f"{relative} not found; looked in: "
-                        + ", ".join(str(p) for p in candidates))
-
-
-def _ament_share() -> Path | None:
-    """The package's share directory in the ament index, or None (no index, not listed)."""
-    try:
-        from ament_index_python.packages import get_package_share_directory
-
-        return Path(get_package_share_directory(PACKAGE))
-    except (ImportError, LookupError, OSError):  # no ament_index, not indexed, no prefix path
-        return None
 
 
 def _parse(path: Path) -> dict[str, Topic]:

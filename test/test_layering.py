@@ -1,0 +1,59 @@
+"""Dependencies point one way (README, Layout): each subpackage imports only from lower layers,
+and nothing below the ROS nodes imports ROS."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parent.parent / "jetpipe_ros"
+
+#: Lowest first. A module may import its own subpackage and anything in a lower layer.
+LAYERS = (
+    ("model", "dataset", "package_data"),  # physics; data I/O; where the data files are
+    ("control",),  # the PID law
+    ("campaign", "replay"),  # plans, signals, offline runner; replaying a CSV
+    ("identify", "diagnosis", "bag"),  # the paper's procedures; the gap diagnosis; bags
+    ("nodes",),  # ROS 2 shells
+    ("cli", "showcase"),  # entry points
+)
+LAYER = {name: i for i, names in enumerate(LAYERS) for name in names}
+#: Top-level packages of ROS 2 itself (rosbags and mcap are plain Python libraries).
+ROS = {"rclpy", "std_msgs", "sensor_msgs", "rosgraph_msgs", "rcl_interfaces",
+       "builtin_interfaces", "ament_index_python"}
+
+
+def _imports(path: Path) -> list[str]:
+    """Absolute module names imported anywhere in ``path`` (inside functions too)."""
+    names = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.append(node.module)
+        elif isinstance(node, ast.Import):
+            names.extend(alias.name for alias in node.names)
+    return names
+
+
+def _modules() -> list[tuple[str, Path]]:
+    """(subpackage or top-level module, file) of every module but the package's __init__."""
+    return [(p.relative_to(PACKAGE).parts[0].removesuffix(".py"), p)
+            for p in sorted(PACKAGE.rglob("*.py")) if p != PACKAGE / "__init__.py"]
+
+
+def test_every_subpackage_has_a_layer():
+    assert {group for group, _ in _modules()} <= set(LAYER)
+
+
+def test_imports_point_down_and_only_nodes_import_ros():
+    wrong = []
+    for group, path in _modules():
+        where = f"{path.relative_to(PACKAGE.parent)} ({group})"
+        for name in _imports(path):
+            parts = name.split(".")
+            if parts[0] == "jetpipe_ros" and len(parts) > 1 and parts[1] != group \
+                    and LAYER[parts[1]] >= LAYER[group]:
+                wrong.append(f"{where} imports {name}, not below it")
+            optional_index = group == "package_data" and parts[0] == "ament_index_python"
+            if parts[0] in ROS and group != "nodes" and not optional_index:
+                wrong.append(f"{where} imports ROS ({name}); only nodes may")
+    assert wrong == []
