@@ -13,6 +13,7 @@ LAYERS = (
     ("model", "dataset", "package_data"),  # physics; data I/O; where the data files are
     ("control",),  # the PID law
     ("campaign", "replay"),  # plans, signals, offline runner; replaying a CSV
+    ("plant",),  # a stand-in for real hardware written apart from the model's effects
     ("identify", "diagnosis", "bag"),  # the paper's procedures; the gap diagnosis; bags
     ("nodes",),  # ROS 2 shells
     ("cli", "showcase"),  # entry points

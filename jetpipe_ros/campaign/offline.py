@@ -13,7 +13,9 @@ the command applied over [t_k, t_k+1), the convention of :func:`jetpipe_ros.mode
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -61,7 +63,8 @@ def _run_phase(act: Actuator, pid: Pid, phase: Phase, out: np.ndarray) -> dict[s
 
 def run_campaign_offline(params: ModelParams, campaign: Campaign, out_dir: str | Path,
                          seed: int | None = None, controller: PidConfig | None = None,
-                         overwrite: bool = False) -> Path:
+                         overwrite: bool = False,
+                         actuator: Callable[[ModelParams], Any] = Actuator) -> Path:
     """Simulate every experiment of ``campaign`` and write a DESIGN.md s.5 dataset.
 
     Args:
@@ -74,6 +77,9 @@ def run_campaign_offline(params: ModelParams, campaign: Campaign, out_dir: str |
         controller: gains of the closed-loop phases; default :class:`PidConfig` (the values of
             ``config/controller.yaml``).
         overwrite: replace an existing non-empty ``out_dir``.
+        actuator: builds what stands for the hardware from ``params`` (as changed here): the
+            model's :class:`Actuator` by default, or another with its interface and its own
+            ``reconfigure(changes)`` for the rig (e.g. :class:`jetpipe_ros.plant.Plant`).
 
     Returns:
         The dataset directory. Each CSV has ``t,u,y,p1,p2`` (sensor readings), ``v`` (true
@@ -85,7 +91,7 @@ def run_campaign_offline(params: ModelParams, campaign: Campaign, out_dir: str |
                                   "mechanics.locked": False}
     if seed is not None:
         changes["sensors.seed"] = int(seed)
-    act = Actuator(params.with_values(changes))
+    act = actuator(params.with_values(changes))
     pid = Pid(controller or PidConfig(), campaign.sample_time)
     out = act.outputs()
     experiments = []

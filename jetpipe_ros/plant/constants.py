@@ -1,0 +1,153 @@
+"""A plant specification compiled for the plant's loop, and the layout of its state vector."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from jetpipe_ros.model.flow import GAMMA_AIR, P_SUPPLY_NOMINAL
+from jetpipe_ros.plant.linear import second_order_lag
+from jetpipe_ros.plant.spec import PlantSpec
+from jetpipe_ros.plant.valve import delayed_chain
+
+# State layout: scalars, the extra lag, the sensors, the plays, then the valve chain.
+(Y, V, M1, M2, E1, E2, P1, P2, STUCK, Z, SUPPLY, DRAWN, STEP, HEAD, UCMD, UEQ,
+ FRICTION) = range(17)
+LAG = 17  #: extra valve lag: output [V], its rate [V/s]
+SENSOR1 = 19  #: chamber 1 transducer: reading [Pa], its rate [Pa/s]
+SENSOR2 = 21  #: chamber 2 transducer
+PLAY = 23  #: the N_PLAY play operators' outputs [V]
+N_PLAY = 3
+VALVE = PLAY + N_PLAY  #: first of the valve chain's states
+
+
+class PlantConstants(NamedTuple):
+    """Everything the plant's loop needs, SI units; built by :func:`build_constants`."""
+
+    dt: float  #: sample time [s]
+    substeps: int  #: sub-steps per sample
+    u_limit: float  #: command saturation [V]
+    valve_a: np.ndarray  #: valve chain over a sub-step (delay: valve docstring)
+    valve_b_early: np.ndarray
+    valve_b_late: np.ndarray
+    valve_c: np.ndarray
+    delay_whole: int  #: whole sub-steps of the total delay
+    lag: bool  #: extra second-order valve lag on
+    lag_a: np.ndarray  #: its discretisation over a sub-step
+    lag_b: np.ndarray
+    play_thresholds: np.ndarray  #: [V]; empty = no hysteresis
+    play_weights: np.ndarray  #: normalised to sum 1
+    valve_gain: float  #: u_eq per u_h
+    null_offset: float  #: [V]
+    flow_coef: np.ndarray  #: Eq. 8 coefficients
+    gain_charge: float
+    gain_discharge: float
+    gain_slope: float  #: pressure-dependent valve gain k
+    supply_set: float  #: regulator set pressure [Pa]
+    supply_droop: float  #: [Pa s/kg]
+    supply_tau: float  #: supply line time constant [s]
+    leak_cross: float  #: sonic conductance across the piston [m^3/(s Pa)]
+    leak_atm: float  #: sonic conductance of each chamber to atmosphere [m^3/(s Pa)]
+    leak_b: float  #: critical pressure ratio
+    thermal: bool  #: energy balance with wall heat exchange on
+    heat_coefficient: float  #: h_c [W/(m^2 K)]
+    t_wall: float  #: wall (and isothermal gas) temperature [K]
+    t_supply: float  #: supply air temperature [K]
+    r_gas: float  #: [J/(kg K)]
+    cv: float  #: [J/(kg K)]
+    area: float  #: piston area [m^2]
+    v01: float  #: chamber volumes at y = 0 [m^3]
+    v02: float
+    mass: float  #: moving mass [kg]
+    y_max: float  #: end stops at +-y_max [m]
+    locked: bool
+    regulated: bool
+    planes: np.ndarray  #: friction planes (2, 4, 3)
+    bristles: bool  #: elasto-plastic friction on
+    sigma0: float  #: [N/m]
+    sigma1: float  #: [N s/m]
+    v_damp: float  #: [m/s]
+    z_fraction: float  #: beta
+    cushion_length: float  #: [m]; 0 = no cushion
+    cushion_k: float  #: [N/m]
+    cushion_c: float  #: [N s/m]
+    sensor: bool  #: second-order transducers on
+    sensor_a: np.ndarray
+    sensor_b: np.ndarray
+    sensor_gain: float  #: 1 + gain error
+    sensor_offset_1: float  #: [Pa]
+    sensor_offset_2: float  #: [Pa]
+    sigma_p: float  #: pressure noise [Pa]
+    sigma_y: float  #: position noise [m]
+
+
+def build_constants(spec: PlantSpec) -> PlantConstants:
+    """Compile ``spec`` for the loop."""
+    p = spec.params
+    e = spec.effects
+    dt = p["integration.sample_time"]
+    h = dt / spec.substeps
+    chain = delayed_chain(p, h, p["valve.delay"] + e.get("transport_delay", {}).get("delay", 0.0))
+    lag = e.get("second_order_lag")
+    lag_a, lag_b = second_order_lag(lag["natural_frequency"], lag["damping_ratio"], h) if lag \
+        else (np.zeros((2, 2)), np.zeros(2))
+    plays = e.get("weighted_play_hysteresis")
+    if plays:
+        thresholds = np.array([plays[f"threshold_{i}"] for i in range(1, N_PLAY + 1)])
+        weights = np.array([plays[f"weight_{i}"] for i in range(1, N_PLAY + 1)])
+        weights = weights / weights.sum()
+    else:
+        thresholds = weights = np.zeros(0)
+    supply = e.get("supply_droop", {"set_pressure": P_SUPPLY_NOMINAL, "droop": 0.0,
+                                    "time_constant": 1.0})
+    leak = e.get("iso6358_leak", {"cross_conductance": 0.0, "atmosphere_conductance": 0.0,
+                                  "critical_ratio": 0.5})
+    heat = e.get("wall_heat_exchange")
+    friction = e.get("elastoplastic_friction", {"bristle_stiffness": 1.0, "bristle_damping": 0.0,
+                                                "damping_velocity": 1.0,
+                                                "breakaway_fraction": 0.5})
+    cushion = e.get("end_stop_cushion", {"length": 0.0, "stiffness": 0.0, "damping": 0.0})
+    sensor = e.get("sensor_second_order")
+    sensor_a, sensor_b = second_order_lag(sensor["natural_frequency"], sensor["damping_ratio"],
+                                          h) if sensor else (np.zeros((2, 2)), np.zeros(2))
+    noise = p["sensors.noise"]
+    r_gas = p["chamber.gas_constant"]
+    return PlantConstants(
+        dt=dt, substeps=spec.substeps, u_limit=p["valve.command_limit"],
+        valve_a=chain.a, valve_b_early=chain.b_early, valve_b_late=chain.b_late,
+        valve_c=chain.c, delay_whole=chain.whole,
+        lag=lag is not None, lag_a=lag_a, lag_b=lag_b,
+        play_thresholds=thresholds, play_weights=weights,
+        valve_gain=p["valve.gain"], null_offset=e.get("null_offset", {}).get("offset", 0.0),
+        flow_coef=np.array(p["flow.coefficients"], dtype=float),
+        gain_charge=p["flow.gain_charge"], gain_discharge=p["flow.gain_discharge"],
+        gain_slope=e.get("pressure_dependent_gain", {}).get("slope", 0.0),
+        supply_set=supply["set_pressure"], supply_droop=supply["droop"],
+        supply_tau=supply["time_constant"],
+        leak_cross=leak["cross_conductance"], leak_atm=leak["atmosphere_conductance"],
+        leak_b=leak["critical_ratio"],
+        thermal=heat is not None,
+        heat_coefficient=heat["heat_transfer_coefficient"] if heat else 0.0,
+        t_wall=p["chamber.temperature"],
+        t_supply=p["chamber.temperature"] + (heat["supply_temperature_offset"] if heat else 0.0),
+        r_gas=r_gas, cv=r_gas / (GAMMA_AIR - 1.0),
+        area=p["chamber.piston_area"], v01=p["chamber.dead_volume_1"],
+        v02=p["chamber.dead_volume_2"], mass=spec.mass,
+        y_max=0.5 * p["mechanics.stroke"], locked=p["mechanics.locked"],
+        regulated=p["chamber.regulated"],
+        planes=np.array([[p[f"friction.{phase}.{q}"] for q in
+                          ("breakaway", "stribeck_velocity", "viscous", "coulomb")]
+                         for phase in ("entry", "exit")], dtype=float),
+        bristles="elastoplastic_friction" in e,
+        sigma0=friction["bristle_stiffness"], sigma1=friction["bristle_damping"],
+        v_damp=friction["damping_velocity"], z_fraction=friction["breakaway_fraction"],
+        cushion_length=cushion["length"], cushion_k=cushion["stiffness"],
+        cushion_c=cushion["damping"],
+        sensor=sensor is not None, sensor_a=sensor_a, sensor_b=sensor_b,
+        sensor_gain=1.0 + (sensor["gain_error"] if sensor else 0.0),
+        sensor_offset_1=sensor["offset_1"] if sensor else 0.0,
+        sensor_offset_2=sensor["offset_2"] if sensor else 0.0,
+        sigma_p=p["sensors.pressure_sigma"] if noise else 0.0,
+        sigma_y=p["sensors.position_sigma"] if noise else 0.0,
+    )

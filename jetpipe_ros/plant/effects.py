@@ -1,0 +1,90 @@
+"""The plant's real effects as a withheld truth: subsystem, the listed effect each would be
+named by (DESIGN.md s.3) or ``unlisted``, and a sampler of realistic sizes.
+
+Sizes are DESIGN.md s.3's typical sizes read through each form (e.g. a transducer whose
+equivalent lag 2 zeta / w_n falls in 1-13 ms, a leak of a few % of the valve's rated flow), and
+for the effects on no list, sizes that matter on a real bench (a null offset of 0.05-0.2 V, a
+cushion of 2-4 mm).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+
+
+class RealEffect(NamedTuple):
+    """What a real effect is to the diagnosis, and how large it is drawn."""
+
+    subsystem: str  #: valve | chamber | mechanics | sensors
+    listed: str  #: the DESIGN.md s.3 effect that names it, or "unlisted"
+    sample: Callable[[np.random.Generator], dict[str, float]]  #: parameters at a realistic size
+
+
+def _log_uniform(rng: np.random.Generator, low: float, high: float) -> float:
+    return float(math.exp(rng.uniform(math.log(low), math.log(high))))
+
+
+def _signed(rng: np.random.Generator, low: float, high: float) -> float:
+    return float(rng.choice([-1.0, 1.0]) * rng.uniform(low, high))
+
+
+def _plays(rng: np.random.Generator) -> dict[str, float]:
+    """Three plays, unequal weights and thresholds, weighted half-width 0.1-0.4 V."""
+    weights = rng.dirichlet([2.0, 2.0, 2.0])
+    shape = np.array([rng.uniform(0.2, 0.6), rng.uniform(0.8, 1.2), rng.uniform(1.5, 2.2)])
+    thresholds = shape * rng.uniform(0.1, 0.4) / float(weights @ shape)
+    out = {}
+    for i in range(3):
+        out[f"threshold_{i + 1}"] = float(thresholds[i])
+        out[f"weight_{i + 1}"] = float(weights[i])
+    return out
+
+
+def _bristles(rng: np.random.Generator) -> dict[str, float]:
+    """Stiffness 1e4-1e6 N/m, damping 0.1-0.7 of critical, 2 sqrt(sigma_0 M), on the nominal
+    1 kg."""
+    sigma0 = _log_uniform(rng, 1e4, 1e6)
+    return {"bristle_stiffness": sigma0,
+            "bristle_damping": 2.0 * rng.uniform(0.1, 0.7) * math.sqrt(sigma0 * 1.0),
+            "damping_velocity": _log_uniform(rng, 5e-4, 5e-3),
+            "breakaway_fraction": float(rng.uniform(0.5, 0.9))}
+
+
+#: Real effect name -> (subsystem, listed effect or "unlisted", sampler).
+REAL_EFFECTS: dict[str, RealEffect] = {
+    "wall_heat_exchange": RealEffect("chamber", "thermal", lambda r: {
+        "heat_transfer_coefficient": _log_uniform(r, 10.0, 100.0),
+        "supply_temperature_offset": float(r.uniform(-3.0, 3.0))}),
+    "iso6358_leak": RealEffect("chamber", "leakage", lambda r: {
+        "cross_conductance": float(r.uniform(1e-10, 3e-10)),
+        "atmosphere_conductance": float(r.choice([0.0, r.uniform(0.5e-10, 1.5e-10)])),
+        "critical_ratio": float(r.uniform(0.3, 0.45))}),
+    "weighted_play_hysteresis": RealEffect("valve", "valve_hysteresis", _plays),
+    "elastoplastic_friction": RealEffect("mechanics", "friction_dynamics", _bristles),
+    "sensor_second_order": RealEffect("sensors", "sensor_dynamics", lambda r: {
+        "natural_frequency": _log_uniform(r, 25.0, 100.0),
+        "damping_ratio": float(r.uniform(0.6, 1.0)),
+        "gain_error": _signed(r, 0.005, 0.02),
+        "offset_1": _signed(r, 1e3, 1e4), "offset_2": _signed(r, 1e3, 1e4)}),
+    "transport_delay": RealEffect("valve", "valve_delay", lambda r: {
+        "delay": float(r.uniform(1e-3, 5e-3))}),
+    "second_order_lag": RealEffect("valve", "valve_lag", lambda r: {
+        "natural_frequency": _log_uniform(r, 15.0, 60.0),
+        "damping_ratio": float(r.uniform(0.5, 1.0))}),
+    "supply_droop": RealEffect("valve", "supply_pressure", lambda r: {
+        "set_pressure": float(r.uniform(6.5e5, 9e5)), "droop": float(r.uniform(1e7, 3e7)),
+        "time_constant": float(r.uniform(5e-3, 2e-2))}),
+    "extra_mass": RealEffect("mechanics", "moving_mass", lambda r: {
+        "mass": float(r.choice([r.uniform(-0.5, -0.3), r.uniform(1.0, 4.0)]))}),
+    "null_offset": RealEffect("valve", "unlisted", lambda r: {
+        "offset": _signed(r, 0.05, 0.2)}),
+    "pressure_dependent_gain": RealEffect("valve", "unlisted", lambda r: {
+        "slope": _signed(r, 0.2, 0.5)}),
+    "end_stop_cushion": RealEffect("mechanics", "unlisted", lambda r: {
+        "length": float(r.uniform(2e-3, 4e-3)), "stiffness": _log_uniform(r, 2e5, 1e6),
+        "damping": float(r.uniform(2e3, 8e3))}),
+}

@@ -1,0 +1,241 @@
+"""The plant's compiled integration loop, apart from the model's kernel.
+
+Per sub-step of length h = dt / substeps (8 by default, the model integrates in 4):
+
+1. the command enters the delay line; the valve chain advances exactly behind the continuous
+   delay, then the extra lag, the plays and the null offset give u_eq (:mod:`valve`);
+2. the supply line relaxes toward its drooped pressure; the valve flows (Eq. 8 by similarity,
+   pressure-dependent gain) and the ISO 6358 leaks move gas mass (and enthalpy) at fixed volume
+   (:mod:`chambers`), by Heun's rule (second order: the flows at the start and at the Euler
+   prediction, averaged; u_eq the valve's output averaged over the sub-step);
+3. the piston's velocity and position advance implicitly under the pressures so reached (the
+   gas spring linearised implicit as well), with stick-slip or bristles, cushions and the
+   inelastic end stops (:mod:`mechanics`);
+4. the chambers' gas follows the volume change (isothermal, or isentropic then exact wall heat
+   exchange) and the pressures are read from mass (and energy) and volume;
+5. the pressure transducers advance on the pressures held over the sub-step (:mod:`sensors`).
+
+With the regulators on (``chamber.regulated``) the pressures stay where they are and the gas
+mass follows the volume; with the piston locked it stays, at zero velocity and friction.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from jetpipe_ros.model.chamber import chamber_volumes
+from jetpipe_ros.model.flow import GAMMA_AIR, P_ATM
+from jetpipe_ros.model.valve import U_EQ_MAX, U_EQ_MIN
+from jetpipe_ros.plant.chambers import exchange_heat, isentropic_energy, leak_mass
+from jetpipe_ros.plant.constants import (DRAWN, E1, E2, FRICTION, HEAD, LAG, M1, M2, N_PLAY, P1,
+                                         P2, PLAY, SENSOR1, SENSOR2, STEP, STUCK, SUPPLY, UCMD,
+                                         UEQ, VALVE, V, Y, Z, PlantConstants)
+from jetpipe_ros.plant.linear import second_order_step
+from jetpipe_ros.plant.mechanics import bristles, stick_slip
+from jetpipe_ros.plant.sensors import measure
+from jetpipe_ros.plant.valve import valve_inflow, weighted_plays
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _valve(c: PlantConstants, x: np.ndarray, xv: np.ndarray, tmp: np.ndarray,
+           ring: np.ndarray, head: int, u: float) -> float:
+    """u_eq [V] over the sub-step whose command is ``u`` [V] (the valve chain's and the lag's
+    outputs averaged over the sub-step's ends: the flow integrates trapezoidally in them);
+    advances the valve's states."""
+    n = ring.shape[0]
+    ring[head] = u
+    u_late = ring[(head - c.delay_whole) % n]
+    u_early = ring[(head - c.delay_whole - 1) % n]
+    nv = xv.shape[0]
+    u_f = 0.0
+    for i in range(nv):
+        acc = c.valve_b_early[i] * u_early + c.valve_b_late[i] * u_late
+        for j in range(nv):
+            acc += c.valve_a[i, j] * xv[j]
+        # Decaying states would otherwise end in subnormals, which are ~100x slower.
+        tmp[i] = acc if abs(acc) > 1e-200 else 0.0
+        u_f += 0.5 * c.valve_c[i] * (xv[i] + tmp[i])
+    xv[:] = tmp
+    if c.lag:
+        start = x[LAG]
+        second_order_step(c.lag_a, c.lag_b, x, LAG, u_f)
+        u_f = 0.5 * (start + x[LAG])
+    if c.play_thresholds.shape[0]:
+        u_f = weighted_plays(x[PLAY:PLAY + N_PLAY], c.play_thresholds, c.play_weights, u_f)
+    return min(max(c.valve_gain * u_f + c.null_offset, U_EQ_MIN), U_EQ_MAX)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _temperature(c: PlantConstants, x: np.ndarray, m: int, e: int) -> float:
+    return x[e] / (x[m] * c.cv) if c.thermal else c.t_wall
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _vent(c: PlantConstants, x: np.ndarray, m: int, e: int, p: float, t: float, vol: float,
+          kappa: float, h: float) -> None:
+    """Leak one chamber (mass at ``m``, energy at ``e``) to atmosphere over a sub-step; air
+    coming in is at the wall temperature."""
+    t_up = t if p > P_ATM else c.t_wall
+    dm = leak_mass(c.leak_atm, c.leak_b, p, P_ATM, t, c.t_wall, kappa * t_up / vol, h)
+    x[m] -= dm
+    if c.thermal:
+        x[e] -= (c.cv + c.r_gas) * t_up * dm
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _flows(c: PlantConstants, x: np.ndarray, u_eq: float, vol1: float, vol2: float,
+           h: float) -> None:
+    """Move gas through the valve and the leaks over a sub-step at fixed volume."""
+    p1 = x[P1]
+    p2 = x[P2]
+    ps = x[SUPPLY]
+    q1 = valve_inflow(c.flow_coef, u_eq, p1, ps, c.gain_charge, c.gain_discharge, c.gain_slope)
+    q2 = valve_inflow(c.flow_coef, -u_eq, p2, ps, c.gain_charge, c.gain_discharge, c.gain_slope)
+    x[DRAWN] = max(q1, 0.0) + max(q2, 0.0)
+    t1 = _temperature(c, x, M1, E1)
+    t2 = _temperature(c, x, M2, E2)
+    cp = c.cv + c.r_gas
+    x[M1] += h * q1
+    x[M2] += h * q2
+    if c.thermal:
+        x[E1] += h * cp * q1 * (c.t_supply if q1 > 0.0 else t1)
+        x[E2] += h * cp * q2 * (c.t_supply if q2 > 0.0 else t2)
+    # Pressure per kg moved at the upstream temperature: r T / V, or gamma r T / V adiabatic.
+    kappa = GAMMA_AIR * c.r_gas if c.thermal else c.r_gas
+    if c.leak_cross > 0.0:
+        t_up = t1 if p1 > p2 else t2
+        dm = leak_mass(c.leak_cross, c.leak_b, p1, p2, t1, t2,
+                       kappa * t_up * (1.0 / vol1 + 1.0 / vol2), h)
+        x[M1] -= dm
+        x[M2] += dm
+        if c.thermal:
+            x[E1] -= cp * t_up * dm
+            x[E2] += cp * t_up * dm
+    if c.leak_atm > 0.0:
+        _vent(c, x, M1, E1, p1, t1, vol1, kappa, h)
+        _vent(c, x, M2, E2, p2, t2, vol2, kappa, h)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _pressures(c: PlantConstants, x: np.ndarray, vol1: float, vol2: float) -> None:
+    if c.thermal:
+        x[P1] = (GAMMA_AIR - 1.0) * x[E1] / vol1
+        x[P2] = (GAMMA_AIR - 1.0) * x[E2] / vol2
+    else:
+        x[P1] = x[M1] * c.r_gas * c.t_wall / vol1
+        x[P2] = x[M2] * c.r_gas * c.t_wall / vol2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _friction(c: PlantConstants, x: np.ndarray, f: float, damping: float,
+              h: float) -> tuple[float, bool, float, float]:
+    """(velocity, stuck, bristle deflection, friction) after a sub-step under force ``f`` [N]
+    and extra implicit ``damping`` [N s/m]; the state is not changed."""
+    if c.bristles:
+        w, z, friction = bristles(x[V], x[Z], f, c.planes, x[P1], x[P2], c.mass / h, damping, h,
+                                  c.sigma0, c.sigma1, c.v_damp, c.z_fraction)
+        return w, False, z, friction
+    w, stuck, friction = stick_slip(x[V], x[STUCK] != 0.0, f, c.planes, x[P1], x[P2],
+                                    c.mass / h, damping)
+    return w, stuck, x[Z], friction
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _mechanics(c: PlantConstants, x: np.ndarray, f_load: float, h: float) -> None:
+    """Advance piston velocity and position one sub-step (mechanics docstring)."""
+    y = x[Y]
+    f_a = c.area * (x[P1] - x[P2]) - f_load
+    # The gas spring implicit too: S (p1 - p2) falls by k_gas dy as the piston moves dy = h w,
+    # k_gas = n S^2 (p1 / V1 + p2 / V2), n = 1 isothermal, gamma isentropic.
+    gas = 0.0
+    if not c.regulated:
+        vol1, vol2 = chamber_volumes(y, c.area, c.v01, c.v02)
+        gas = (GAMMA_AIR if c.thermal else 1.0) * c.area * c.area * \
+            (x[P1] / vol1 + x[P2] / vol2) * h
+    depth = abs(y) - (c.y_max - c.cushion_length)
+    side = math.copysign(1.0, y)
+    if c.cushion_length > 0.0 and depth > 0.0:
+        # Spring-damper at the end of the sub-step, k (depth + h side w) + c side w, implicit.
+        w, stuck, z, friction = _friction(c, x, f_a - side * c.cushion_k * depth,
+                                          gas + c.cushion_k * h + c.cushion_c, h)
+        if c.cushion_k * (depth + h * side * w) + c.cushion_c * side * w < 0.0:
+            w, stuck, z, friction = _friction(c, x, f_a, gas, h)  # it would pull: let go
+    else:
+        w, stuck, z, friction = _friction(c, x, f_a, gas, h)
+    y_new = y + h * w
+    if abs(y_new) > c.y_max:
+        y_new = math.copysign(c.y_max, y_new)
+        w = 0.0
+        stuck = True
+    x[Y] = y_new
+    x[V] = w
+    x[STUCK] = 1.0 if stuck else 0.0
+    x[Z] = z
+    x[FRICTION] = friction
+
+
+@njit(cache=True, error_model="numpy")
+def advance(c: PlantConstants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
+            f_load: np.ndarray, noise: np.ndarray, out: np.ndarray) -> None:
+    """Advance ``len(u)`` samples from state ``x`` (in place): ``u`` [V] and ``f_load`` [N]
+    held over each sample, ``noise`` (n, 3) standard normals, ``out[k]`` the outputs at the end
+    of sample k. Commands must be finite."""
+    h = c.dt / c.substeps
+    nv = c.valve_c.shape[0]
+    xv = x[VALVE:VALVE + nv].copy()
+    tmp = np.empty(nv)
+    head = int(x[HEAD])
+    supply_decay = math.exp(-h / c.supply_tau)
+    for k in range(u.shape[0]):
+        u_k = min(max(u[k], -c.u_limit), c.u_limit)
+        x[UCMD] = u_k
+        for _ in range(c.substeps):
+            u_eq = _valve(c, x, xv, tmp, ring, head, u_k)
+            head = (head + 1) % ring.shape[0]
+            x[UEQ] = u_eq
+            p1_held = x[P1]
+            p2_held = x[P2]
+            vol1, vol2 = chamber_volumes(x[Y], c.area, c.v01, c.v02)
+            target = c.supply_set - c.supply_droop * x[DRAWN]
+            x[SUPPLY] = target + (x[SUPPLY] - target) * supply_decay
+            if not c.regulated:
+                # Heun: the flows at the start and at the Euler prediction, averaged.
+                m1, m2, e1, e2 = x[M1], x[M2], x[E1], x[E2]
+                _flows(c, x, u_eq, vol1, vol2, h)
+                _pressures(c, x, vol1, vol2)
+                _flows(c, x, u_eq, vol1, vol2, h)
+                x[M1] = 0.5 * (m1 + x[M1])
+                x[M2] = 0.5 * (m2 + x[M2])
+                x[E1] = 0.5 * (e1 + x[E1])
+                x[E2] = 0.5 * (e2 + x[E2])
+                _pressures(c, x, vol1, vol2)
+            if c.locked:
+                x[V] = 0.0
+                x[FRICTION] = 0.0
+            else:
+                _mechanics(c, x, f_load[k], h)
+            new1, new2 = chamber_volumes(x[Y], c.area, c.v01, c.v02)
+            if c.regulated:
+                t1 = _temperature(c, x, M1, E1)
+                t2 = _temperature(c, x, M2, E2)
+                x[M1] = x[P1] * new1 / (c.r_gas * t1)
+                x[M2] = x[P2] * new2 / (c.r_gas * t2)
+                x[E1] = x[M1] * c.cv * t1
+                x[E2] = x[M2] * c.cv * t2
+            else:
+                if c.thermal:
+                    x[E1] = exchange_heat(isentropic_energy(x[E1], vol1, new1), x[M1], new1,
+                                          c.area, c.heat_coefficient, c.t_wall, c.cv, h)
+                    x[E2] = exchange_heat(isentropic_energy(x[E2], vol2, new2), x[M2], new2,
+                                          c.area, c.heat_coefficient, c.t_wall, c.cv, h)
+                _pressures(c, x, new1, new2)
+            if c.sensor:
+                second_order_step(c.sensor_a, c.sensor_b, x, SENSOR1, p1_held)
+                second_order_step(c.sensor_a, c.sensor_b, x, SENSOR2, p2_held)
+        x[STEP] += 1.0
+        measure(c, x, noise[k], out[k])
+    x[VALVE:VALVE + nv] = xv
+    x[HEAD] = head

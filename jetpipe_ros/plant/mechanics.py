@@ -1,0 +1,148 @@
+"""The plant's piston: Eq. 14 with the pinned friction, stick-slip, bristles and end-stop cushions.
+
+M dv/dt = F_a - F_f - F_cushion, F_a = S (p1 - p2) - F_L [N], M the moving mass [kg] (the
+nominal plus ``extra_mass`` [kg], a load or fixture on the rod). The friction parameters are the
+pinned planes (``friction_parameters``), Eq. 18's Stribeck curve (``stribeck_force``) and Eq. 15
+at rest (``static_friction``). Each sub-step of length h is implicit Euler in the velocity w,
+the gas spring included (over the sub-step S (p1 - p2) falls by k_gas h w, k_gas = n S^2
+(p1 / V1 + p2 / V2), n = 1 isothermal, gamma with the energy balance):
+
+- **Stick-slip** (nominal): at rest the piston stays while |F_a| <= |F_S|; sliding, the new
+  velocity w solves M (w - v) / h = F_a - F_st(w) - F_v w (Stribeck term implicit too) by Newton
+  steps kept inside a bracket (bisection when a step leaves it); when no w of the sliding
+  direction solves it (the force cannot carry the piston through the sub-step), it sticks.
+  Sticking is a state, so the velocity is exactly zero at rest and cannot chatter.
+- **Elasto-plastic bristles** (``elastoplastic_friction``; Dupont, Hayward, Armstrong and
+  Altpeter 2002, with Olsson's velocity-dependent damping), replacing the stick logic:
+
+      dz/dt = v (1 - alpha(z, v) sigma_0 z / g(v) sgn v),   g(v) = |F_st(v)| [N]
+      F_f = sigma_0 z + sigma_1 exp(-(v / v_d)^2) dz/dt + F_v v
+
+  with alpha = 0 for |z| <= z_ba or sgn z != sgn v (pure elastic pre-sliding, no drift below
+  breakaway), 1 for |z| >= z_ss = g / sigma_0, and 1/2 + 1/2 sin(pi (|z| - (z_ss + z_ba) / 2) /
+  (z_ss - z_ba)) between; z_ba = beta |F_C| / sigma_0. sigma_0 [N/m], sigma_1 [N s/m], v_d
+  [m/s], beta [-]. A force F below beta |F_C| displaces the resting piston by exactly
+  F / sigma_0. z is implicit (linearised in its rate) and coupled implicitly with v.
+  The model's candidate is the LuGre model with constant damping, which creeps below breakaway.
+- **End-stop cushions** (``end_stop_cushion``, on no list): within ``length`` d_c [m] of either
+  end stop a spring-damper pushes the piston back, F = max(k_c e + c_c de/dt, 0) with the
+  penetration e = |y| - (y_max - d_c) (k_c [N/m], c_c [N s/m]), implicit in v. The inelastic
+  stop at +-y_max stays behind it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from jetpipe_ros.model.friction import friction_parameters, static_friction, stribeck_force
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def stribeck_slope(v: float, f_s: float, v_s: float, f_c: float) -> float:
+    """d F_st / dv of Eq. 18's Stribeck term [N s/m]."""
+    r = v / v_s
+    return -2.0 * r / v_s * (f_s - f_c) * math.exp(-r * r)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def sliding_velocity(v: float, f_a: float, inertia: float, damping: float, direction: float,
+                     f_s: float, v_s: float, f_c: float) -> float:
+    """Velocity [m/s] after a sub-step sliding in ``direction`` (+-1): the root w of
+    G(w) = inertia (w - v) - f_a + F_st(w) + damping w with w on the sliding side, or 0 when
+    G does not change sign there (the piston sticks). ``inertia`` = M / h [kg/s], ``damping``
+    [N s/m] the implicit linear terms (F_v, the gas spring's k h, any cushion's), ``f_a`` [N]
+    the other forces."""
+    g0 = (-inertia * v - f_a + f_s) * direction
+    if g0 >= 0.0:
+        return 0.0
+    # G(w) d > 0 once |w| > |v| + |f_a| / inertia: the bracket [0, hi] holds a root.
+    lo = 0.0
+    hi = abs(v) + abs(f_a) / inertia + 1e-12
+    # Start from the step with the Stribeck term explicit.
+    w = (inertia * v + f_a - stribeck_force(v, f_s, v_s, f_c)) * direction / (inertia + damping)
+    if not lo < w < hi:
+        w = 0.5 * hi
+    for _ in range(100):
+        s = w * direction
+        g = (inertia * (s - v) - f_a + stribeck_force(s, f_s, v_s, f_c) + damping * s) * direction
+        if g > 0.0:
+            hi = w
+        else:
+            lo = w
+        slope = inertia + damping + stribeck_slope(s, f_s, v_s, f_c)
+        if slope > 0.0:
+            step = g / slope
+            if abs(step) <= 1e-12 * w + 1e-15:
+                return (w - step) * direction
+            nxt = w - step
+        else:
+            nxt = lo  # Newton has no direction here: bisect
+        if not lo < nxt < hi:
+            nxt = 0.5 * (lo + hi)
+            if hi - lo <= 1e-12 * hi + 1e-15:
+                return nxt * direction
+        w = nxt
+    return w * direction
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def stick_slip(v: float, stuck: bool, f_a: float, planes: np.ndarray, p1: float, p2: float,
+               inertia: float, damping: float) -> tuple[float, bool, float]:
+    """One sub-step of the nominal friction: (velocity [m/s], stuck, friction [N]) from
+    velocity ``v``, the stuck flag and the applied force ``f_a`` [N] (module docstring)."""
+    if stuck or v == 0.0:
+        direction = math.copysign(1.0, f_a)
+        f_s, v_s, f_v, f_c = friction_parameters(planes, direction, p1, p2)
+        if stuck and abs(f_a) <= abs(f_s):
+            return 0.0, True, f_a
+    else:
+        direction = math.copysign(1.0, v)
+        f_s, v_s, f_v, f_c = friction_parameters(planes, direction, p1, p2)
+    w = sliding_velocity(v, f_a, inertia, damping + f_v, direction, f_s, v_s, f_c)
+    if w == 0.0:
+        return 0.0, True, static_friction(f_a, f_s)
+    return w, False, stribeck_force(w, f_s, v_s, f_c) + f_v * w
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def plasticity(z: float, v: float, z_ba: float, z_ss: float) -> float:
+    """alpha(z, v) of the elasto-plastic model [-] (module docstring)."""
+    if v == 0.0 or z * v <= 0.0:
+        return 0.0
+    a = abs(z)
+    if a <= z_ba:
+        return 0.0
+    if a >= z_ss:
+        return 1.0
+    return 0.5 + 0.5 * math.sin(math.pi * (a - 0.5 * (z_ss + z_ba)) / (z_ss - z_ba))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def bristles(v: float, z: float, f_a: float, planes: np.ndarray, p1: float, p2: float,
+             inertia: float, damping: float, h: float, sigma0: float, sigma1: float,
+             v_damp: float, fraction: float) -> tuple[float, float, float]:
+    """One sub-step of the elasto-plastic friction: (velocity [m/s], bristle deflection z [m],
+    friction [N]); ``inertia`` = M / h [kg/s], ``damping`` [N s/m] implicit linear terms besides
+    F_v, ``fraction`` beta (module docstring)."""
+    if v != 0.0:
+        direction = math.copysign(1.0, v)
+    elif f_a != 0.0:
+        direction = math.copysign(1.0, f_a)
+    else:
+        direction = math.copysign(1.0, z)
+    f_s, v_s, f_v, f_c = friction_parameters(planes, direction, p1, p2)
+    g = abs(stribeck_force(v, f_s, v_s, f_c))
+    z_ss = g / sigma0
+    alpha = plasticity(z, v, fraction * abs(f_c) / sigma0, z_ss)
+    rate = alpha * sigma0 * abs(v) / g  # dz/dt = v - rate z
+    s1 = sigma1 * math.exp(-(v / v_damp) ** 2)
+    d = 1.0 + h * rate
+    # z' = (z + h w) / d, dz/dt = (w - rate z) / d, F_f = sigma0 z' + s1 dz/dt + F_v w.
+    w = (inertia * v + f_a - (sigma0 - s1 * rate) * z / d) / \
+        (inertia + (sigma0 * h + s1) / d + f_v + damping)
+    z_new = (z + h * w) / d
+    friction = sigma0 * z_new + s1 * (w - rate * z) / d + f_v * w
+    return w, z_new, friction

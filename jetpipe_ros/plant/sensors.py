@@ -1,0 +1,49 @@
+"""The plant's sensors: a second-order pressure transducer with gain error and offsets, and noise.
+
+- **Second-order pressure sensor** (``sensor_second_order``): each transducer (its diaphragm
+  and the gas in its port) reads the chamber pressure p through
+
+      s'' = w_n^2 (p - s) - 2 zeta w_n s',   p_meas,i = (1 + e) s_i + o_i
+
+  with w_n = 2 pi f_n [rad/s], zeta [-], a common gain error e [-] and an offset o_i [Pa] of
+  its own per sensor. Discretised exactly at the sub-step (zero-order hold on p over the
+  sub-step), so a pressure held over whole samples is read exactly as
+  ``scipy.signal.lfilter`` of the same transfer function discretised at the sample time. The
+  model's candidate is a first-order lag with one bias and a drift for both sensors.
+- **Noise**: as the model's, Gaussian, position sigma 15 um and pressure sigma 500 Pa by
+  default (``sensors.*`` of the model parameters), from ``numpy.random.default_rng(seed)``
+  drawn as the model draws it, added after the sensor dynamics.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from jetpipe_ros.model.kernel import (OUT_FORCE, OUT_FRICTION, OUT_P1, OUT_P1_MEAS, OUT_P2,
+                                     OUT_P2_MEAS, OUT_T, OUT_U, OUT_UEQ, OUT_V, OUT_Y,
+                                     OUT_Y_MEAS)
+from jetpipe_ros.plant.constants import (FRICTION, P1, P2, SENSOR1, SENSOR2, STEP, UCMD, UEQ,
+                                         V, Y, PlantConstants)
+
+
+@njit(cache=True, error_model="numpy")
+def measure(c: PlantConstants, x: np.ndarray, noise: np.ndarray, out: np.ndarray) -> None:
+    """Write the outputs of state ``x`` into ``out`` (the model's layout,
+    ``jetpipe_ros.model.kernel.OUT_*``); ``noise`` holds 3 standard normals (y, p1, p2)."""
+    out[OUT_T] = x[STEP] * c.dt
+    out[OUT_U] = x[UCMD]
+    out[OUT_Y] = x[Y]
+    out[OUT_V] = x[V]
+    out[OUT_P1] = x[P1]
+    out[OUT_P2] = x[P2]
+    out[OUT_FRICTION] = x[FRICTION]
+    out[OUT_FORCE] = c.area * (x[P1] - x[P2])
+    out[OUT_UEQ] = x[UEQ]
+    out[OUT_Y_MEAS] = x[Y] + c.sigma_y * noise[0]
+    if c.sensor:
+        out[OUT_P1_MEAS] = c.sensor_gain * x[SENSOR1] + c.sensor_offset_1 + c.sigma_p * noise[1]
+        out[OUT_P2_MEAS] = c.sensor_gain * x[SENSOR2] + c.sensor_offset_2 + c.sigma_p * noise[2]
+    else:
+        out[OUT_P1_MEAS] = x[P1] + c.sigma_p * noise[1]
+        out[OUT_P2_MEAS] = x[P2] + c.sigma_p * noise[2]

@@ -1,0 +1,159 @@
+"""What a plant is made of: the model's parameters of one actuator and bench, and real effects.
+
+:class:`PlantSpec` holds a :class:`~jetpipe_ros.model.ModelParams` (the nominal values with the
+bench's deviations, the rig switches and the sensor noise; no model effect on) and the real
+effects switched on, each with its parameters (:data:`EFFECT_PARAMS`, unit and range each; the
+equations are in the docstrings of :mod:`valve`, :mod:`chambers`, :mod:`mechanics` and
+:mod:`sensors`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from jetpipe_ros.model import ModelParams, ParameterError
+from jetpipe_ros.model.params import ParamSpec, check_value
+from jetpipe_ros.plant.errors import PlantError
+
+
+def _p(name: str, default: float, description: str, unit: str = "", low: float | None = None,
+       high: float | None = None) -> ParamSpec:
+    return ParamSpec(name, default, description, unit, low, high)
+
+
+#: Parameters of each real effect, by effect name.
+EFFECT_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
+    "wall_heat_exchange": (
+        _p("heat_transfer_coefficient", 30.0, "Convective coefficient h_c between the gas and "
+           "the wetted wall", "W/(m^2 K)", 0.0, 1e9),
+        _p("supply_temperature_offset", 0.0, "Supply air temperature minus the wall "
+           "temperature (chamber.temperature)", "K", -50.0, 50.0),
+    ),
+    "iso6358_leak": (
+        _p("cross_conductance", 2e-10, "Sonic conductance C of the leak across the piston",
+           "m^3/(s Pa)", 0.0, 1e-8),
+        _p("atmosphere_conductance", 0.0, "Sonic conductance C of each chamber's leak to "
+           "atmosphere", "m^3/(s Pa)", 0.0, 1e-8),
+        _p("critical_ratio", 0.35, "Critical pressure ratio b", "", 0.05, 0.6),
+    ),
+    "weighted_play_hysteresis": tuple(
+        spec for i, (r, w) in enumerate(((0.05, 0.5), (0.2, 0.3), (0.45, 0.2)), 1) for spec in (
+            _p(f"threshold_{i}", r, f"Threshold r_{i} of play {i}", "V", 0.0, 2.0),
+            _p(f"weight_{i}", w, f"Weight w_{i} of play {i} (weights are normalised to sum 1)",
+               "", 0.0, 1.0))),
+    "elastoplastic_friction": (
+        _p("bristle_stiffness", 1e5, "Bristle stiffness sigma_0", "N/m", 1e3, 1e8),
+        _p("bristle_damping", 300.0, "Bristle damping sigma_1 at rest", "N s/m", 0.0, 1e5),
+        _p("damping_velocity", 2e-3, "Velocity v_d over which the bristle damping fades",
+           "m/s", 1e-5, 1.0),
+        _p("breakaway_fraction", 0.7, "Elastic range z_ba as a fraction beta of |F_C| / "
+           "sigma_0", "", 0.01, 0.99),
+    ),
+    "sensor_second_order": (
+        _p("natural_frequency", 50.0, "Pressure transducer natural frequency f_n", "Hz",
+           1.0, 1e5),
+        _p("damping_ratio", 0.7, "Pressure transducer damping ratio zeta", "", 0.05, 5.0),
+        _p("gain_error", 0.01, "Pressure transducers' gain error e", "", -0.2, 0.2),
+        _p("offset_1", 5e3, "Chamber 1 transducer offset o_1", "Pa", -1e5, 1e5),
+        _p("offset_2", -2e3, "Chamber 2 transducer offset o_2", "Pa", -1e5, 1e5),
+    ),
+    "transport_delay": (
+        _p("delay", 2.7e-3, "Valve transport delay beyond valve.delay, continuous", "s",
+           0.0, 0.05),
+    ),
+    "second_order_lag": (
+        _p("natural_frequency", 40.0, "Extra valve lag natural frequency f_n", "Hz", 0.5, 1e4),
+        _p("damping_ratio", 0.7, "Extra valve lag damping ratio zeta", "", 0.05, 5.0),
+    ),
+    "supply_droop": (
+        _p("set_pressure", 8e5, "Regulator set pressure p_set (absolute)", "Pa", 2e5, 1e6),
+        _p("droop", 2e7, "Supply pressure lost per flow drawn R", "Pa s/kg", 0.0, 1e8),
+        _p("time_constant", 0.01, "Supply line time constant tau_r", "s", 1e-4, 1.0),
+    ),
+    "extra_mass": (
+        _p("mass", 1.5, "Moving mass beyond mechanics.mass (negative: lighter)", "kg",
+           -50.0, 50.0),
+    ),
+    "null_offset": (
+        _p("offset", 0.1, "Valve null offset u_0 on the equivalent voltage", "V", -0.5, 0.5),
+    ),
+    "pressure_dependent_gain": (
+        _p("slope", 0.3, "Flow gain slope k: factor 1 + k (p - p_mid) / p_s", "", -0.9, 0.9),
+    ),
+    "end_stop_cushion": (
+        _p("length", 3e-3, "Cushioned length d_c before each end stop", "m", 1e-4, 0.02),
+        _p("stiffness", 5e5, "Cushion stiffness k_c", "N/m", 1e3, 1e8),
+        _p("damping", 5e3, "Cushion damping c_c", "N s/m", 0.0, 1e6),
+    ),
+}
+
+
+@dataclass(frozen=True)
+class PlantSpec:
+    """One plant: the model's parameters (nominal values, the bench's deviations, rig switches,
+    sensor noise; model effects off) and the real effects on, name -> parameters (missing
+    parameters take their defaults). ``substeps``: integration sub-steps per sample.
+
+    Raises :class:`~jetpipe_ros.plant.PlantError` naming the effect and parameter on an
+    unknown name, a value out of range, or a model effect switched on.
+    """
+
+    params: ModelParams = field(default_factory=ModelParams)
+    effects: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    substeps: int = 8
+
+    def __post_init__(self) -> None:
+        on = self.params.enabled_effects()
+        if on:
+            raise PlantError(f"model effects {', '.join(on)} are on: the plant's effects are "
+                             f"its own (jetpipe_ros.plant.EFFECT_PARAMS)")
+        if not 1 <= self.substeps <= 1000:
+            raise PlantError(f"substeps = {self.substeps} is out of range [1, 1000]")
+        effects = {}
+        for name, values in self.effects.items():
+            specs = EFFECT_PARAMS.get(name)
+            if specs is None:
+                raise PlantError(f"unknown real effect {name!r}; known: "
+                                 f"{', '.join(EFFECT_PARAMS)}")
+            known = {s.name: s for s in specs}
+            unknown = set(values) - set(known)
+            if unknown:
+                raise PlantError(f"{name}: unknown parameter(s) {', '.join(sorted(unknown))}; "
+                                 f"known: {', '.join(known)}")
+            try:
+                effects[name] = {s.name: check_value(s, values.get(s.name, s.default), name)
+                                 for s in specs}
+            except ParameterError as exc:
+                raise PlantError(str(exc)) from exc
+        object.__setattr__(self, "effects", effects)
+        if self.mass <= 0.0:
+            raise PlantError(f"extra_mass: the moving mass {self.mass:g} kg is not positive")
+        hysteresis = effects.get("weighted_play_hysteresis")
+        if hysteresis and sum(hysteresis[f"weight_{i}"] for i in (1, 2, 3)) <= 0.0:
+            raise PlantError("weighted_play_hysteresis: the weights sum to 0")
+
+    @property
+    def mass(self) -> float:
+        """Moving mass [kg]: mechanics.mass plus any extra_mass."""
+        extra = self.effects.get("extra_mass", {}).get("mass", 0.0)
+        return self.params["mechanics.mass"] + extra
+
+    def with_effect(self, name: str, **values: float) -> PlantSpec:
+        """A copy with real effect ``name`` on (or its parameters changed)."""
+        return PlantSpec(self.params, {**self.effects, name: {**self.effects.get(name, {}),
+                                                              **values}}, self.substeps)
+
+    def with_params(self, params: ModelParams) -> PlantSpec:
+        """A copy with other model parameters, the same effects."""
+        return PlantSpec(params, self.effects, self.substeps)
+
+    def with_values(self, changes: Mapping[str, Any]) -> PlantSpec:
+        """A copy with some model parameters changed (dotted names, validated)."""
+        return self.with_params(self.params.with_values(changes))
+
+    def describe(self) -> dict[str, Any]:
+        """The plant as plain data: its effects and the model parameters off their defaults."""
+        return {"effects": {k: dict(v) for k, v in self.effects.items()},
+                "params": self.params.non_default(), "substeps": self.substeps}

@@ -1,0 +1,461 @@
+"""The plant stand-in (jetpipe_ros.plant): the nominal plant against the model, and each real
+effect against its physics, evaluated independently here (closed forms, scipy)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import integrate, linalg, optimize, signal
+
+from jetpipe_ros.campaign import default_campaign, load_campaign, run_campaign_offline
+from jetpipe_ros.control import Pid, PidConfig
+from jetpipe_ros.dataset import read_dataset
+from jetpipe_ros.model import Actuator, ModelParams
+from jetpipe_ros.model import kernel as k
+from jetpipe_ros.model import simulate as model_simulate
+from jetpipe_ros.model.chamber import chamber_volumes
+from jetpipe_ros.model.flow import chamber_inflow, flow_polynomial
+from jetpipe_ros.model.friction import friction_parameters
+from jetpipe_ros.model.params import FLOW_COEFFICIENTS, FRICTION_PLANES
+from jetpipe_ros.model.valve import valve_tf
+from jetpipe_ros.plant import (EFFECT_PARAMS, REAL_EFFECTS, Plant, PlantError, PlantSpec,
+                               campaign_dataset, simulate)
+from jetpipe_ros.plant.chambers import iso6358_flow
+from jetpipe_ros.plant.valve import valve_inflow
+
+REPO = Path(__file__).resolve().parent.parent
+COEF = np.array(FLOW_COEFFICIENTS)
+P = ModelParams()
+LOCKED = P.with_values({"mechanics.locked": True})
+AREA = P["chamber.piston_area"]
+V1, V2 = chamber_volumes(0.0, AREA, P["chamber.dead_volume_1"], P["chamber.dead_volume_2"])
+RT = P["chamber.gas_constant"] * P["chamber.temperature"]
+T = np.arange(0.0, 10.0, 1e-3)
+#: Stop to stop at 0.6 V and 3 V with an 8 Hz ripple: sliding, sticking, end-stop impacts.
+FREE = np.where(T < 5, 0.6 * np.sign(np.sin(2 * np.pi * 0.1122 * T)),
+                3.0 * np.sign(np.sin(2 * np.pi * 0.97 * T))) + 0.2 * np.sin(2 * np.pi * 8 * T)
+CHARGE = np.where(T[:6000] < 3, 2.0, -2.0)  # locked: charge chamber 1, then discharge it
+PLANES = np.array([[FRICTION_PLANES[ph][q] for q in ("breakaway", "stribeck_velocity",
+                                                      "viscous", "coulomb")]
+                   for ph in ("entry", "exit")])
+
+
+def _pressure_gap(a, b) -> float:
+    return float(max(np.abs(a.p1 - b.p1).max(), np.abs(a.p2 - b.p2).max()))
+
+
+def _regulated(spec: PlantSpec, p1: float, p2: float, y: float = 0.0) -> Plant:
+    """A plant on the friction rig: regulators hold p1, p2 [Pa], piston placed at y [m]."""
+    plant = Plant(spec)
+    plant.reconfigure({"chamber.regulated": True, "chamber.initial_pressure_1": p1,
+                       "chamber.initial_pressure_2": p2, "mechanics.initial_position": y})
+    return plant
+
+
+# --- the nominal plant is the model --------------------------------------------------------------
+
+def test_nominal_plant_reproduces_the_model():
+    """Stated tolerance, noise-free: locked pressures within 1 kPa; free piston within 60 um and
+    6 kPa at the end-stop impacts, 25 um and 500 Pa RMS. That is the model's own discretisation
+    error at 4 sub-steps: refined to 64 sub-steps both agree within 6 um and 600 Pa."""
+    locked = _pressure_gap(simulate(PlantSpec(LOCKED), CHARGE), model_simulate(LOCKED, CHARGE))
+    assert locked < 1000.0
+    plant, model = simulate(PlantSpec(), FREE), model_simulate(P, FREE)
+    assert np.abs(plant.y - model.y).max() < 60e-6
+    assert _pressure_gap(plant, model) < 6000.0
+    assert np.sqrt(np.mean((plant.y - model.y) ** 2)) < 25e-6
+    assert np.sqrt(np.mean((plant.p1 - model.p1) ** 2)) < 500.0
+    fine = P.with_values({"integration.substeps": 64})
+    plant, model = simulate(PlantSpec(fine, substeps=64), FREE[:3000]), \
+        model_simulate(fine, FREE[:3000])
+    assert np.abs(plant.y - model.y).max() < 6e-6
+    assert _pressure_gap(plant, model) < 600.0
+
+
+def test_plant_with_bench_deviations_reproduces_the_deviated_model():
+    bench = P.with_values({"flow.gain_charge": 1.08, "flow.gain_discharge": 0.93,
+                           "valve.gain": 1.04, "valve.rotor_inertia": 7.1e-6,
+                           "chamber.dead_volume_1": 1.6e-4, "chamber.temperature": 292.0,
+                           "friction.exit.breakaway": [1.2 * c for c in
+                                                       FRICTION_PLANES["exit"]["breakaway"]]})
+    plant, model = simulate(PlantSpec(bench), FREE[:5000]), model_simulate(bench, FREE[:5000])
+    assert np.abs(plant.y - model.y).max() < 60e-6
+    assert np.sqrt(np.mean((plant.p1 - model.p1) ** 2)) < 500.0
+    assert np.abs(plant.y - simulate(PlantSpec(), FREE[:5000]).y).max() > 3e-4  # it matters
+
+
+def test_plant_does_not_depend_on_the_substep_count():
+    """8 against 32 sub-steps: within 25 um and 3 kPa (the end-stop impacts), 200 Pa RMS."""
+    coarse, fine = simulate(PlantSpec(), FREE), simulate(PlantSpec(substeps=32), FREE)
+    assert np.abs(coarse.y - fine.y).max() < 25e-6
+    assert _pressure_gap(coarse, fine) < 3000.0
+    assert np.sqrt(np.mean((coarse.p1 - fine.p1) ** 2)) < 200.0
+
+
+def test_stick_slip_does_not_chatter():
+    """Closed loop on the campaign's +-2 mm triangle at 1 mm/s: the piston sticks at each
+    reversal for ~0.2 s, its velocity exactly 0, then slips, in the model's episodes (within 2
+    samples), never alternating sample by sample."""
+    t = np.arange(0.0, 10.0, 1e-3)
+    setpoint = 2e-3 * signal.sawtooth(2 * np.pi * t / 8 + np.pi / 2, 0.5)
+    episodes = []
+    for actuator in (Plant(), Actuator()):
+        pid, out, moving = Pid(PidConfig(), 1e-3), actuator.outputs(), []
+        for s in setpoint:
+            out = actuator.step(pid.update(s, out[k.OUT_Y_MEAS]), 0.0)
+            moving.append(out[k.OUT_V] != 0.0)
+        episodes.append(np.flatnonzero(np.diff(np.array(moving, dtype=int))))
+    plant, model = episodes
+    assert len(plant) == len(model) >= 4
+    assert np.abs(plant - model).max() <= 2
+    assert np.diff(plant).min() > 100
+
+
+# --- chambers: energy balance with wall heat exchange --------------------------------------------
+
+def test_energy_balance_conserves_mass():
+    """Locked, heat exchange and a cross leak on: the gas mass p V / (r T) changes only by the
+    valve's flows (Eq. 8 at the recorded u_eq and pressures, integrated here)."""
+    spec = PlantSpec(LOCKED).with_effect("wall_heat_exchange", heat_transfer_coefficient=30.0) \
+        .with_effect("iso6358_leak", cross_conductance=2e-10)
+    plant = Plant(spec)
+    u = np.concatenate([np.full(1500, 1.5), np.full(1500, -1.0)])
+    rows, temps = [plant.outputs()], [plant.temperatures]
+    for x in u:
+        rows.append(plant.step(x).copy())
+        temps.append(plant.temperatures)
+    rows, temps = np.array(rows), np.array(temps)
+    r = P["chamber.gas_constant"]
+    mass = rows[:, k.OUT_P1] * V1 / (r * temps[:, 0]) + rows[:, k.OUT_P2] * V2 / (r * temps[:, 1])
+    q = np.array([chamber_inflow(COEF, o[k.OUT_UEQ], o[k.OUT_P1], 1e6)
+                  + chamber_inflow(COEF, -o[k.OUT_UEQ], o[k.OUT_P2], 1e6) for o in rows])
+    moved = np.concatenate([[0.0], np.cumsum(0.5 * (q[1:] + q[:-1]) * 1e-3)])
+    exchanged = np.sum(np.abs(q)) * 1e-3
+    assert np.abs(temps - 298.15).max() > 5.0  # the gas does heat and cool
+    assert np.abs(mass - mass[0] - moved).max() < 1e-3 * exchanged
+
+
+def test_adiabatic_chambers_follow_the_rigid_tank_laws():
+    """h_c = 0, locked: a chamber filled at the supply temperature rises gamma times faster
+    than an isothermal one, dp/dt = gamma r T_s q / V; one that empties expands isentropically,
+    T = T_0 (p / p_0)^((gamma - 1) / gamma)."""
+    plant = Plant(PlantSpec(LOCKED).with_effect("wall_heat_exchange",
+                                                heat_transfer_coefficient=0.0))
+    rows, temps = [plant.outputs()], [plant.temperatures]
+    for _ in range(1000):
+        rows.append(plant.step(2.0).copy())
+        temps.append(plant.temperatures)
+    rows, temps = np.array(rows), np.array(temps)
+    p1, u_eq = rows[:, k.OUT_P1], rows[:, k.OUT_UEQ]
+    rate = (p1[2:] - p1[:-2]) / 2e-3
+    q = np.array([chamber_inflow(COEF, u_eq[i], p1[i], 1e6) for i in range(1, len(p1) - 1)])
+    gamma = (rate / (RT * q / V1))[100:]  # once the valve has settled
+    assert gamma == pytest.approx(1.4, abs=1e-3)
+    p2 = rows[:, k.OUT_P2]
+    assert temps[:, 1] == pytest.approx(298.15 * (p2 / p2[0]) ** (0.4 / 1.4), abs=1e-3)
+
+
+def test_large_wall_conductance_tends_to_the_isothermal_plant():
+    u = FREE[:6000]
+    nominal = simulate(PlantSpec(), u)
+    gaps = [_pressure_gap(simulate(PlantSpec().with_effect(
+        "wall_heat_exchange", heat_transfer_coefficient=hc), u), nominal)
+        for hc in (1e2, 1e4, 1e6)]
+    assert gaps[0] > 1e4 and gaps[1] < gaps[0] / 10 and gaps[2] < 300.0
+
+
+# --- chambers: ISO 6358 leaks --------------------------------------------------------------------
+
+def _iso6358(c: float, b: float, p_up: float, p_down: float, t_up: float) -> float:
+    """ISO 6358-1 written out: q = C rho_0 p_1 sqrt(T_0 / T_1) [sqrt(1 - ((r - b)/(1 - b))^2)]."""
+    r = p_down / p_up
+    scale = c * 1.185 * p_up * math.sqrt(293.15 / t_up)
+    return scale if r <= b else scale * math.sqrt(1.0 - ((r - b) / (1.0 - b)) ** 2)
+
+
+@pytest.mark.parametrize("ratio", [0.1, 0.3, 0.35, 0.36, 0.5, 0.8, 0.95, 0.999])
+def test_iso6358_flow_is_the_standards(ratio):
+    c, b, p_up, t_up = 2e-10, 0.35, 6e5, 310.0
+    assert iso6358_flow(c, b, p_up, ratio * p_up, t_up) == pytest.approx(
+        _iso6358(c, b, p_up, ratio * p_up, t_up), rel=1e-12)
+    assert iso6358_flow(c, b, p_up, p_up * 0.1, t_up) == pytest.approx(c * 1.185 * p_up *
+                                                                       math.sqrt(293.15 / t_up))
+
+
+def test_iso6358_flow_is_laminar_near_equal_pressures():
+    c, b, p_up = 2e-10, 0.35, 6e5
+    at = _iso6358(c, b, p_up, 0.999 * p_up, 293.15)
+    for r in (0.9995, 0.9999):
+        assert iso6358_flow(c, b, p_up, r * p_up, 293.15) == pytest.approx(
+            at * (1 - r) / 0.001, rel=1e-9)
+
+
+def test_leak_to_atmosphere_sets_the_locked_equilibria():
+    """Locked at 1 V with ISO leaks to atmosphere (b = 0.3): chamber 1 settles where Eq. 8
+    feeds the choked leak, chamber 2 where it feeds the subsonic one (brentq)."""
+    c, b = 2e-10, 0.3
+    plant = Plant(PlantSpec(LOCKED).with_effect("iso6358_leak", cross_conductance=0.0,
+                                                atmosphere_conductance=c, critical_ratio=b))
+    out = plant.run(np.full(15000, 1.0))[-1]
+    tw = P["chamber.temperature"]
+    p1 = optimize.brentq(lambda p: chamber_inflow(COEF, 1.0, p, 1e6)
+                         - _iso6358(c, b, p, 1e5, tw), 2e5, 9e5)
+    p2 = optimize.brentq(lambda p: chamber_inflow(COEF, -1.0, p, 1e6)
+                         - _iso6358(c, b, p, 1e5, tw), 1.1e5, 6e5)
+    assert 1e5 / p1 <= b < 1e5 / p2  # one choked, one subsonic
+    assert out[k.OUT_P1] == pytest.approx(p1, abs=30.0)
+    assert out[k.OUT_P2] == pytest.approx(p2, abs=30.0)
+    assert p1 < optimize.brentq(lambda p: chamber_inflow(COEF, 1.0, p, 1e6), 2e5, 9e5) - 1e4
+
+
+# --- valve ---------------------------------------------------------------------------------------
+
+def _vertical_width(u: np.ndarray, u_eq: np.ndarray) -> float:
+    """u_eq on the falling branch minus the rising branch where the command crosses 0."""
+    up = np.flatnonzero((u[:-1] < 0) & (u[1:] >= 0))[-1]
+    down = np.flatnonzero((u[:-1] > 0) & (u[1:] <= 0))[-1]
+    return float(u_eq[down] - u_eq[up])
+
+
+def test_weighted_plays_set_the_loop_widths():
+    """Plays r = 0.05, 0.2, 0.45 V weighted 0.5, 0.3, 0.2: a loop of amplitude A has the
+    vertical width sum w_i 2 min(r_i, A - r_i)^+ at its centre: 0.35 V for A = 1.5 V, 0.11 V for
+    A = 0.3 V (the widest play never moves)."""
+    spec = PlantSpec(LOCKED).with_effect("weighted_play_hysteresis", threshold_1=0.05,
+                                         weight_1=0.5, threshold_2=0.2, weight_2=0.3,
+                                         threshold_3=0.45, weight_3=0.2)
+    t = np.arange(0.0, 100.0, 1e-3)
+    for amplitude, width in ((0.3, 0.11), (1.5, 0.35)):
+        u = amplitude * signal.sawtooth(2 * np.pi * 0.02 * t + np.pi / 2, 0.5)
+        trace = simulate(spec, u)
+        assert _vertical_width(u, trace.u_eq) == pytest.approx(width, abs=3e-3)
+
+
+def test_delay_is_continuous():
+    """A 1 V step behind 2 ms + 2.7 ms (not a whole number of sub-steps): u_eq is the chain's
+    step response s(t - 4.7 ms), averaged over the last sub-step, to 1e-9 V."""
+    plant = Plant(PlantSpec(LOCKED).with_effect("transport_delay", delay=2.7e-3))
+    u_eq = plant.run(np.ones(40))[:, k.OUT_UEQ]
+    h = 1e-3 / 8
+    t_end = np.arange(1, 41) * 1e-3
+    a, b, c, _ = signal.tf2ss(*valve_tf(P))
+    n = a.shape[0]
+
+    def step(t):  # s(t) = c int_0^t e^{a r} b dr, 0 before the step
+        out = np.zeros_like(t)
+        for i, ti in enumerate(t):
+            if ti > 0:
+                m = np.zeros((n + 1, n + 1))
+                m[:n, :n], m[:n, n] = a, b[:, 0]
+                out[i] = (c @ linalg.expm(m * ti)[:n, n])[0]
+        return out
+
+    expected = 0.5 * (step(t_end - 4.7e-3) + step(t_end - h - 4.7e-3))
+    assert u_eq == pytest.approx(expected, abs=1e-9)
+    rounded = 0.5 * (step(t_end - 4.75e-3) + step(t_end - h - 4.75e-3))
+    assert np.abs(rounded - expected).max() > 1e-3
+
+
+def test_second_order_lag_attenuates_as_its_transfer_function():
+    f_n, zeta, f = 30.0, 0.6, 20.0
+    u = 0.3 * np.sin(2 * np.pi * f * T[:1500])
+    base = simulate(PlantSpec(LOCKED), u).u_eq[750:]
+    lagged = simulate(PlantSpec(LOCKED).with_effect("second_order_lag", natural_frequency=f_n,
+                                                    damping_ratio=zeta), u).u_eq[750:]
+    r = f / f_n
+    assert np.ptp(lagged) / np.ptp(base) == pytest.approx(
+        1 / math.sqrt((1 - r * r) ** 2 + (2 * zeta * r) ** 2), rel=0.01)
+
+
+def test_null_offset_moves_the_locked_equilibria_to_the_nulls_at_the_offset():
+    plant = Plant(PlantSpec(LOCKED).with_effect("null_offset", offset=0.15))
+    out = plant.run(np.zeros(10000))[-1]
+    p1 = optimize.brentq(lambda p: chamber_inflow(COEF, 0.15, p, 1e6), 2e5, 9e5)
+    p2 = optimize.brentq(lambda p: chamber_inflow(COEF, -0.15, p, 1e6), 2e5, 9e5)
+    assert out[k.OUT_P1] == pytest.approx(p1, abs=20.0)
+    assert out[k.OUT_P2] == pytest.approx(p2, abs=20.0)
+    assert p1 - p2 > 3e4
+
+
+def test_supply_similarity_and_pressure_dependent_gain():
+    """q(u, p; p_s) = s q_8(u, p / s), s = p_s / 10 bar, times 1 + k (p - p_mid) / p_s."""
+    for u, p, ps, k in ((1.0, 5e5, 8e5, 0.0), (-2.0, 3e5, 7e5, 0.0), (2.0, 4e5, 1e6, 0.3),
+                        (0.5, 6e5, 9e5, -0.4)):
+        s = ps / 1e6
+        expected = s * flow_polynomial(COEF, u, p / s * 1e-5) * \
+            (1 + k * (p - 0.5 * (ps + 1e5)) / ps)
+        assert valve_inflow(COEF, u, p, ps, 1.0, 1.0, k) == pytest.approx(expected, rel=1e-12)
+
+
+def test_pressure_dependent_gain_scales_the_pressure_rise():
+    """Locked, 2 V from 4.16 bar: over the first 10 ms chamber 1 rises by 1 + k (p - p_mid) /
+    p_s times the nominal rise, p the mean pressure of the rise."""
+    u, p0, slope = np.full(10, 2.0), 416480.0, 0.4
+    base = Plant(PlantSpec(LOCKED)).run(u)[-1, k.OUT_P1] - p0
+    gained = Plant(PlantSpec(LOCKED).with_effect("pressure_dependent_gain", slope=slope)).run(u)
+    rise = gained[-1, k.OUT_P1] - p0
+    factor = 1 + slope * (p0 + 0.5 * rise - 5.5e5) / 1e6
+    assert rise > 1e3
+    assert rise / base == pytest.approx(factor, rel=2e-4)
+
+
+def test_supply_droops_with_the_flow_drawn():
+    """Locked at 3 V: the supply follows p_set - R Q through its first-order line, Q the flow
+    filling chamber 1 (as the valve draws it at that supply), within 1 % of the droop."""
+    p_set, droop, tau = 8e5, 2e7, 0.005
+    plant = Plant(PlantSpec(LOCKED).with_effect("supply_droop", set_pressure=p_set, droop=droop,
+                                                time_constant=tau))
+    supply, target = [], []
+    for _ in range(500):
+        out = plant.step(3.0)
+        supply.append(plant.supply_pressure)
+        target.append(p_set - droop * valve_inflow(COEF, out[k.OUT_UEQ], out[k.OUT_P1],
+                                                   supply[-1], 1.0, 1.0, 0.0))
+    lagged = signal.lfilter([1 - math.exp(-1e-3 / tau)], [1, -math.exp(-1e-3 / tau)],
+                            target[:-1], zi=[p_set * math.exp(-1e-3 / tau)])[0]
+    drop = p_set - min(supply)
+    assert drop > 2e4
+    assert np.abs(np.array(supply[1:]) - lagged)[20:].max() < 0.01 * drop
+
+
+# --- mechanics -----------------------------------------------------------------------------------
+
+def test_elastoplastic_presliding_is_force_over_stiffness_without_drift():
+    sigma0, beta = 2e5, 0.8
+    spec = PlantSpec().with_effect("elastoplastic_friction", bristle_stiffness=sigma0,
+                                   bristle_damping=200.0, breakaway_fraction=beta)
+    p = 4e5
+    f_c = friction_parameters(PLANES, 1.0, p, p)[3]
+    force = 0.5 * beta * f_c
+    plant = _regulated(spec, p, p)
+    half = plant.run(np.zeros(500), -force)[-1]
+    end = plant.run(np.zeros(500), -force)[-1]
+    assert end[k.OUT_Y] == pytest.approx(force / sigma0, rel=1e-3)
+    assert abs(end[k.OUT_Y] - half[k.OUT_Y]) < 1e-10  # no creep below breakaway
+    slid = _regulated(spec, p, p).run(np.zeros(300), -3 * abs(friction_parameters(
+        PLANES, 1.0, p, p)[0]))[-1]
+    assert slid[k.OUT_Y] > 1e-3  # above breakaway it slides
+
+
+def test_cushion_balances_the_force_before_the_stop():
+    """Regulated: S (p1 - p2) = 1087 N drives the piston into a 4 mm, 5e5 N/m cushion; at
+    rest (it creeps onto the breakaway boundary) the friction holds what the spring does not,
+    F_a - k e, within F_S, short of the hard stop."""
+    k_c, d_c = 5e5, 4e-3
+    spec = PlantSpec().with_effect("end_stop_cushion", length=d_c, stiffness=k_c, damping=4e3)
+    p1, p2 = 6e5, 4e5
+    out = _regulated(spec, p1, p2).run(np.zeros(1500))[-1]
+    f_a = AREA * (p1 - p2)
+    depth = out[k.OUT_Y] - (0.025 - d_c)
+    f_s = friction_parameters(PLANES, 1.0, p1, p2)[0]
+    assert abs(out[k.OUT_V]) < 1e-9 and 0.0 < depth < d_c
+    assert out[k.OUT_FRICTION] == pytest.approx(f_a - k_c * depth, abs=1e-3)
+    assert abs(out[k.OUT_FRICTION]) <= abs(f_s) + 1e-6
+
+
+def test_piston_accelerates_as_the_ode_with_its_mass():
+    """Regulated at 6 / 4 bar, released at rest: y(t) is the solution of M v' = F_a - F_C -
+    (F_S - F_C) exp(-(v / v_s)^2) - F_v v (solve_ivp) within 10 um, for the nominal 1 kg and
+    with 2 kg extra (the lag to the viscous speed grows with M)."""
+    p1, p2 = 6e5, 4e5
+    f_s, v_s, f_v, f_c = friction_parameters(PLANES, 1.0, p1, p2)
+    f_a = AREA * (p1 - p2)
+    t = np.arange(1, 21) * 1e-3
+    ys = []
+    for extra in (0.0, 2.0):
+        spec = PlantSpec().with_effect("extra_mass", mass=extra) if extra else PlantSpec()
+        y = _regulated(spec, p1, p2, -0.02).run(np.zeros(20))[:, k.OUT_Y]
+        mass = 1.0 + extra
+        ode = integrate.solve_ivp(
+            lambda _, z: [z[1], (f_a - f_c - (f_s - f_c) * math.exp(-(z[1] / v_s) ** 2)
+                                 - f_v * z[1]) / mass],
+            (0.0, 0.02), [-0.02, 0.0], t_eval=t, rtol=1e-10, atol=1e-12)
+        assert y == pytest.approx(ode.y[0], abs=10e-6)
+        ys.append(y)
+    assert ys[0][-1] - ys[1][-1] > 1e-4
+
+
+# --- sensors -------------------------------------------------------------------------------------
+
+def test_second_order_sensor_is_its_transfer_function():
+    """Regulated steps of pressure read through the transducer equal scipy.signal.lfilter of
+    w^2 / (s^2 + 2 zeta w s + w^2) discretised at 1 ms (zero-order hold), gain error and offset
+    applied."""
+    f_n, zeta, gain, o1 = 40.0, 0.6, 0.015, 4e3
+    spec = PlantSpec().with_effect("sensor_second_order", natural_frequency=f_n,
+                                   damping_ratio=zeta, gain_error=gain, offset_1=o1)
+    plant = _regulated(spec, 4e5, 4e5)
+    plant.run(np.zeros(500))  # the transducer settles at 4 bar
+    p0 = plant.outputs()[k.OUT_P1]
+    rows = []
+    for p1 in (6e5, 3e5, 5.5e5):
+        plant.reconfigure({"chamber.initial_pressure_1": p1})
+        rows.append(plant.run(np.zeros(100)))
+    rows = np.vstack(rows)
+    w = 2 * np.pi * f_n
+    b, a, _ = signal.cont2discrete(([w * w], [1, 2 * zeta * w, w * w]), 1e-3, method="zoh")
+    b = b.ravel()
+    held = rows[:, k.OUT_P1]  # the pressure held over each sample; the reading at its end:
+    read = signal.lfilter(b, a, np.append(held, held[-1]), zi=signal.lfilter_zi(b, a) * p0)[0][1:]
+    assert rows[:, k.OUT_P1_MEAS] == pytest.approx((1 + gain) * read + o1, abs=1e-6)
+    assert np.abs(rows[:, k.OUT_P1_MEAS] - rows[:, k.OUT_P1]).max() > 1e4
+
+
+def test_noise_is_the_models_and_seeded():
+    noisy = P.with_values({"sensors.noise": True, "sensors.seed": 4})
+    a = Plant(PlantSpec(noisy)).run(np.zeros(2000))
+    b = Actuator(noisy).run(np.zeros(2000))
+    assert a[:, k.OUT_Y_MEAS:] == pytest.approx(b[:, k.OUT_Y_MEAS:], abs=1e-3)  # at rest
+    assert np.std(a[:, k.OUT_P1_MEAS] - a[:, k.OUT_P1]) == pytest.approx(500.0, rel=0.05)
+
+
+# --- specification, effects catalogue, campaign -------------------------------------------------
+
+def test_spec_rejects_what_it_cannot_simulate():
+    with pytest.raises(PlantError, match="unknown real effect 'thermal'"):
+        PlantSpec(effects={"thermal": {}})
+    with pytest.raises(PlantError, match="null_offset: unknown parameter"):
+        PlantSpec().with_effect("null_offset", voltage=0.1)
+    with pytest.raises(PlantError, match="out of range"):
+        PlantSpec().with_effect("iso6358_leak", critical_ratio=0.9)
+    with pytest.raises(PlantError, match="model effects valve_lag are on"):
+        PlantSpec(P.with_effect("valve_lag", corner_frequency=20.0))
+
+
+def test_real_effects_sample_valid_parameters():
+    rng = np.random.default_rng(1)
+    assert set(REAL_EFFECTS) == set(EFFECT_PARAMS)
+    unlisted = {n for n, e in REAL_EFFECTS.items() if e.listed == "unlisted"}
+    assert unlisted == {"null_offset", "pressure_dependent_gain", "end_stop_cushion"}
+    for name, effect in REAL_EFFECTS.items():
+        for _ in range(20):
+            values = effect.sample(rng)
+            assert set(values) == {s.name for s in EFFECT_PARAMS[name]}
+            PlantSpec().with_effect(name, **values)
+
+
+def test_campaign_runner_records_through_the_plant(tmp_path):
+    """The offline runner drives the plant through locked, free, closed-loop and regulated
+    phases; with no effect it records what it records on the model."""
+    plan = load_campaign(REPO / "config" / "campaign.yaml").select(["charge_0p57V", "stick_slip"])
+    ident = load_campaign(REPO / "config" / "campaign_identification.yaml")
+    regulated = [e.name for e in ident.experiments if e.regulated is not None][:1]
+    for name, campaign in (("main", plan), ("rig", ident.select(regulated))):
+        a = read_dataset(run_campaign_offline(P, campaign, tmp_path / f"plant_{name}",
+                                              actuator=lambda p: Plant(PlantSpec(p))))
+        b = read_dataset(run_campaign_offline(P, campaign, tmp_path / f"model_{name}"))
+        for (_, ea), (_, eb) in zip(a, b):
+            assert np.abs(ea.y - eb.y).max() < 60e-6
+            assert np.sqrt(np.mean((ea.p1 - eb.p1) ** 2)) < 500.0
+
+
+def test_campaign_dataset_writes_the_default_campaign(tmp_path):
+    spec = PlantSpec(P.with_values({"sensors.noise": True})).with_effect(
+        "null_offset", offset=0.1).with_effect("sensor_second_order")
+    root = campaign_dataset(spec, tmp_path / "d", 123456)
+    ds = read_dataset(root)
+    names = [e.file for e, _ in ds]
+    assert names == [f"{e.name}.csv" for e in default_campaign().experiments]
