@@ -32,8 +32,8 @@ def _selfcheck(args: argparse.Namespace) -> int:
 
     from jetpipe_ros.diagnosis.selfcheck import run_selfcheck
 
-    summary = run_selfcheck(args.cases, args.seed, campaign_dataset, Path(args.out),
-                            workers=args.jobs, deviate=args.deviations)
+    summary = run_selfcheck(args.cases, args.seed, out_dir=Path(args.out), workers=args.jobs,
+                            deviate=args.deviations, source=args.truth)
     print(f"\n{summary['cases']} cases in {summary['seconds']:.0f} s: top-1 accuracy "
           f"{100 * summary['top1_accuracy']:.0f} %, none correct: "
           f"{'yes' if summary['none_correct'] else 'no'}, median held-out shrinkage "
@@ -65,6 +65,9 @@ def add_command(subparsers) -> None:
     c.add_argument("--seed", type=int, default=0, help="seed of sizes and noise (default 0)")
     c.add_argument("--out", default="out/selfcheck", help="where selfcheck.md/json go")
     c.add_argument("--jobs", type=int, default=2, help="parallel fitting processes (default 2)")
+    c.add_argument("--truth", choices=("plant", "model"), default="plant",
+                   help="where the data come from: the plant written apart from the candidates "
+                        "(default), or the simulator's own effects")
     c.add_argument("--deviations", action=argparse.BooleanOptionalAction, default=True,
                    help="move the nominal parameters of every case as an individual actuator "
                         "and bench would (default on; --no-deviations: the nominal model)")

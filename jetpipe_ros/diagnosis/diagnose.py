@@ -40,7 +40,7 @@ from jetpipe_ros.diagnosis.localize import by_regime, frequency_response, positi
 from jetpipe_ros.diagnosis import residuals
 from jetpipe_ros.diagnosis.noise_floor import calibrate, twin
 from jetpipe_ros.diagnosis.prediction import HORIZON, predict
-from jetpipe_ros.diagnosis.score import METRIC, predict_all, score, window_errors
+from jetpipe_ros.diagnosis.score import METRIC, Score, predict_all, score, window_errors
 from jetpipe_ros.diagnosis.verdict import (Ranked, Settled, decide, needs_pairs,
                                            paired_t, rank, settle)
 from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError, simulate
@@ -52,11 +52,9 @@ OUTPUTS = ("diagnosis.json", "report.html", "augmented.yaml")
 VISIBLE = 0.02
 #: Candidates refitted jointly with the best single effect as pairs.
 PAIR_POOL = 2
-#: Effects (best by training error on the recalibrated model) refitted jointly with the
-#: calibration knobs, and the model-evaluation budgets of the calibration and the joint fits.
-JOINT_POOL = 3
+#: Model-evaluation budgets of the calibration and of a candidate refitted jointly with it.
 CALIBRATION_BUDGET = 150
-JOINT_BUDGET = 150
+JOINT_BUDGET = 120
 CAL = CALIBRATION.name
 
 
@@ -81,20 +79,41 @@ def stacked(below: Fit, above: Fit) -> Fit:
                                z=np.concatenate([below.z, above.z]))
 
 
-def fit_on_calibration(fitter: Fitter, nominal: ModelParams, cal: Fit, names: Sequence[str],
-                       progress: Callable[[str], None]) -> list[Fit]:
-    """Every candidate fitted on top of the recalibrated model ``cal`` (its knobs held); the
-    :data:`JOINT_POOL` that lower the training error most then refitted jointly with the
-    calibration knobs (which the effect may partly have been standing in for)."""
-    progress(f"fitting {len(names)} candidates on the recalibrated model")
-    onto = [stacked(cal, f) for f in fitter.run([Job(cal.params, (e,)) for e in names])]
-    top = sorted(onto, key=lambda f: f.train.total)[:JOINT_POOL]
-    progress(f"refitting {', '.join(f.name for f in top)} jointly with the calibration")
-    joint = fitter.run([Job(nominal, f.groups, f.z, JOINT_BUDGET) for f in top],
-                       [f"{f.name} + calibration, jointly" for f in top])
-    refit = {f.name: f for f in joint}
-    return [refit[f.name] if f.name in refit and refit[f.name].train.total <= f.train.total
-            else f for f in onto]
+def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit,
+                names: Sequence[str], progress: Callable[[str], None]
+                ) -> tuple[dict[str, Fit], list[Fit]]:
+    """Every candidate fitted alone (on the nominal model) and on top of the recalibrated model
+    ``cal`` (its knobs held), then refitted jointly with the calibration knobs: a knob may have
+    stood in for the effect (recalibrated alone, it took the effect's place) or the effect for a
+    knob, so the joint fit starts from whichever of (recalibration, effect on top of it),
+    (nominal knobs, effect alone) and (recalibration, effect alone) fits the training data best.
+    A candidate that removes less than :data:`VISIBLE` of the noise variance from the training
+    error both alone and on the recalibrated model is not refitted: at that size it could not
+    show. Returns the fits alone by candidate, and the calibrated fits."""
+    progress(f"fitting {len(names)} candidates alone and on the recalibrated model")
+    n = len(names)
+    fits = fitter.run([Job(nominal, (e,)) for e in names] + [Job(cal.params, (e,))
+                                                             for e in names],
+                      [*names, *(f"{e} on the recalibrated model" for e in names)])
+    alone = dict(zip(names, fits[:n]))
+    onto = [stacked(cal, f) for f in fits[n:]]
+    todo = [(e, f) for e, f in zip(names, onto)
+            if max(_removed(nom_train, alone[e].train),
+                   _removed(cal.train, f.train)) >= VISIBLE]
+    progress(f"refitting {len(todo)} candidates jointly with the calibration knobs "
+             f"({', '.join(e for e, _ in todo) or 'none'})")
+    jobs = [Job(nominal, f.groups, np.stack([
+        f.z, np.concatenate([CALIBRATION.start(), alone[e].z]),
+        np.concatenate([cal.z, alone[e].z])]), JOINT_BUDGET) for e, f in todo]
+    joint = {f.name: f for f in fitter.run(jobs, [f"{e} + calibration, jointly"
+                                                  for e, _ in todo])}
+    return alone, [joint[f.name] if f.name in joint and joint[f.name].train.total <=
+                   f.train.total else f for f in onto]
+
+
+def _removed(base: Score, fitted: Score) -> float:
+    """Training error removed, as a fraction of the noise variance."""
+    return (base.total - fitted.total) / max(base.noise_total, 1e-300)
 
 
 def fit_pairs(fitter: Fitter, nominal: ModelParams, best: Fit, names: Sequence[str],
@@ -268,30 +287,28 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
         (cal_row,) = rank([cal], nom_hold, nom_windows, dt)
         progress(f"recalibrated: held-out gap {nom_hold.gap:.2f} % -> {cal.holdout.gap:.2f} % "
                  f"({', '.join(calibration.describe(cal.values[CAL])) or 'no knob off'})")
-        on_cal = fit_on_calibration(fitter, nominal, cal, names, progress)
+        alone, on_cal = fit_effects(fitter, nominal, nom_train, cal, names, progress)
+        alone_ranking = rank(list(alone.values()), nom_hold, nom_windows, dt)
         ranking = rank(on_cal, cal.holdout, cal.holdout_windows, dt)
         floor = prepared.floor_windows
         if ranking and needs_pairs(ranking[0], floor):
             on_cal += fit_pairs(fitter, nominal, ranking[0].fit, names, progress)
             ranking = rank(on_cal, cal.holdout, cal.holdout_windows, dt)
-        cross_check([cal_row, *ranking[:2]], fitter, nominal, nom_all, progress)
+        cross_check([cal_row, *ranking[:2], *alone_ranking[:2]], fitter, nominal, nom_all,
+                    progress)
         on_cal_verdict = decide(ranking, cal.holdout, cal.holdout_windows, floor)
+        alone_verdict = decide(alone_ranking, nom_hold, nom_windows, floor)
         given = effect_alone = None
-        alone_ranking: list[Ranked] = []
         if on_cal_verdict.winner is not None:
             # Is the recalibration needed beside the effect? The effect alone, without it:
             w = on_cal_verdict.winner.fit
-            progress(f"fitting {w.name} without the calibration")
-            (b,) = fitter.run([Job(nominal, w.effects, w.z[len(cal.z):], JOINT_BUDGET)])
+            if w.name in alone:
+                b = alone[w.name]
+            else:
+                progress(f"fitting {w.name} without the calibration")
+                (b,) = fitter.run([Job(nominal, w.effects, w.z[len(cal.z):], JOINT_BUDGET)])
             (given,) = rank([w], b.holdout, b.holdout_windows, dt)
             (effect_alone,) = rank([b], nom_hold, nom_windows, dt)
-        else:
-            # No effect beside the calibration: could an effect alone explain the gap instead?
-            progress(f"fitting {len(names)} candidates on the nominal model")
-            alone_ranking = rank(fitter.run([Job(nominal, (e,)) for e in names]), nom_hold,
-                                 nom_windows, dt)
-            cross_check(alone_ranking[:2], fitter, nominal, nom_all, progress)
-        alone_verdict = decide(alone_ranking, nom_hold, nom_windows, floor)
     settled = settle(cal_row, on_cal_verdict, alone_verdict, given, effect_alone)
 
     progress("scoring the augmented model")

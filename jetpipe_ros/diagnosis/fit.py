@@ -133,12 +133,15 @@ class _Objective:
 def fit(prepared: Prepared, nominal: ModelParams, candidates: Sequence[KnobGroup],
         start: np.ndarray | None = None, budget: int = BUDGET) -> Fit:
     """Fit the knob groups ``candidates`` jointly on the training data, applied in order to
-    ``nominal``; score on the holdout. Without ``start`` the first knob is searched on a grid."""
+    ``nominal``; score on the holdout. Without ``start`` the first knob is searched on a grid;
+    with several starts (rows of a 2-D ``start``) the fit goes on from the best."""
     began = time.perf_counter()
     obj = _Objective(prepared, nominal, candidates, budget)
     try:
         if start is None:
             start = _grid_first_knob(obj)
+        elif start.ndim == 2:
+            start = min(start, key=obj.cost)
         if start.size == 1:
             _brent(obj, start)
         else:

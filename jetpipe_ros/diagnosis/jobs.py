@@ -26,7 +26,8 @@ def group(name: str) -> KnobGroup:
 @dataclass(frozen=True)
 class Job:
     """Fit ``groups`` (names, applied in order) on ``base``; ``start`` = unit-scaled knobs to
-    start from (None: a grid over the first knob of the first group, see :func:`fit.fit`)."""
+    start from, or several (rows) to start from the best of (None: a grid over the first knob
+    of the first effect, see :func:`fit.fit`)."""
 
     base: ModelParams
     groups: tuple[str, ...]

@@ -1,16 +1,28 @@
 """``jetpipe selfcheck``: the diagnosis judged on data whose effect and parameters are withheld.
 
-Each case switches on one effect (or two, or none) at a random realistic size, sometimes in a
-form the diagnosis has no candidate for (a multi-element hysteresis, an orifice leak, a
-heat-transfer thermal model), and, unless switched off, moves the nominal parameters as an
-individual actuator and bench would (:func:`deviations`: drawn on the model's raw physical
-parameters, more of them than the diagnosis's calibration knobs and independently of how those
-knobs act). It simulates a dataset with sensor noise and runs the diagnosis on the dataset
+Each case switches on one effect (or two, or none) at a random realistic size and, unless
+switched off, moves the nominal parameters as an individual actuator and bench would
+(:func:`deviations`: drawn on the model's raw physical parameters, more of them than the
+diagnosis's calibration knobs and independently of how those knobs act). The data come from one
+of two sources:
+
+- ``plant`` (the default): :mod:`jetpipe_ros.plant`, a stand-in for real hardware written apart
+  from the candidates, whose effects take other functional forms than the simulator's (an
+  energy balance with wall exchange, ISO 6358 leaks, three weighted plays, elasto-plastic
+  friction, a second-order sensor with gain error and offsets, a continuous delay, a
+  second-order lag, a drooping supply, extra mass) and include effects on no list (a valve null
+  offset, a pressure-dependent valve gain, end-stop cushioning: the right answer is
+  ``unlisted`` with their subsystem); pairs of a strong and a weak effect;
+- ``model``: the simulator's own effects (the candidates' forms, plus a multi-element
+  hysteresis), the check of earlier versions, kept for comparison.
+
+It simulates the default campaign with sensor noise and runs the diagnosis on the dataset
 directory alone. The truth stays here: the diagnosis reads only what a user would give it. Then
 the verdicts are scored: top-1 accuracy (an effect too small to show in the experiments counts as
 correctly answered by ``none``; a parameters-only case must be answered ``none`` with the
-calibration significant), a confusion matrix, the recovery of the fitted parameters and of the
-calibration, and the held-out shrinkage.
+calibration significant; an unlisted truth must be answered ``unlisted`` naming its subsystem),
+a confusion matrix, the recovery of the fitted parameters and of the calibration, and the
+held-out shrinkage.
 """
 
 from __future__ import annotations
@@ -25,13 +37,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.diagnosis.diagnose import VISIBLE, diagnose
 from jetpipe_ros.model import EFFECTS, ModelParams, simulate
 from jetpipe_ros.model.params import end_stop_volumes
+from jetpipe_ros.plant import REAL_EFFECTS, PlantSpec
+from jetpipe_ros.plant import simulate as simulate_plant
 
-#: Realistic sizes (DESIGN.md s.3): name -> sampler of the effect's parameters.
+SOURCES = ("plant", "model")
+
+#: Model truths: realistic sizes (DESIGN.md s.3), name -> sampler of the effect's parameters.
 SIZES: dict[str, Callable[[np.random.Generator], dict]] = {
     "valve_delay": lambda r: {"delay": r.uniform(1e-3, 5e-3)},
     "valve_lag": lambda r: {"corner_frequency": math.exp(r.uniform(math.log(10), math.log(60)))},
@@ -45,7 +62,7 @@ SIZES: dict[str, Callable[[np.random.Generator], dict]] = {
     "sensor_dynamics": lambda r: {"time_constant": r.uniform(1e-3, 1e-2),
                                   "bias": r.choice([-1.0, 1.0]) * r.uniform(1e3, 1e4)},
 }
-#: Effects in a form no candidate has: (effect, sampler) by variant name.
+#: Model truths in the simulator's other forms: (effect, sampler) by variant name.
 VARIANTS: dict[str, tuple[str, Callable[[np.random.Generator], dict]]] = {
     "hysteresis_multi_element": ("valve_hysteresis", lambda r: {
         "half_width": r.uniform(0.15, 0.4), "elements": 4}),
@@ -56,10 +73,24 @@ VARIANTS: dict[str, tuple[str, Callable[[np.random.Generator], dict]]] = {
                                                                      math.log(2.0)))}),
 }
 PAIRS = (("valve_lag", "leakage"), ("valve_hysteresis", "thermal"))
-#: The cycle of case kinds: none, every effect, every variant, the pairs. With parameter
-#: deviations, "none" is a parameters-only case, and comes twice per cycle.
-KINDS = ("none", *EFFECTS, *VARIANTS, *("+".join(p) for p in PAIRS))
-KINDS_DEVIATED = ("none", "none", *EFFECTS, *VARIANTS, *("+".join(p) for p in PAIRS))
+#: Plant truths: pairs of a strong effect and a weak one (drawn at the low end of its sizes).
+PLANT_PAIRS = (("wall_heat_exchange", "sensor_second_order"), ("transport_delay", "iso6358_leak"))
+WEAK: dict[str, Callable[[np.random.Generator], dict]] = {
+    "sensor_second_order": lambda r: {
+        "natural_frequency": math.exp(r.uniform(math.log(60.0), math.log(100.0))),
+        "damping_ratio": float(r.uniform(0.7, 1.0)), "gain_error": 0.0,
+        "offset_1": float(r.choice([-1.0, 1.0]) * r.uniform(1e3, 3e3)),
+        "offset_2": float(r.choice([-1.0, 1.0]) * r.uniform(1e3, 3e3))},
+    "iso6358_leak": lambda r: {"cross_conductance": 0.0,
+                               "atmosphere_conductance": float(r.uniform(0.4e-10, 0.8e-10)),
+                               "critical_ratio": float(r.uniform(0.3, 0.45))},
+}
+#: The cycle of case kinds per source: none (a parameters-only case with deviations, twice per
+#: cycle then), every effect, every variant, the pairs.
+KINDS = {
+    "model": ("none", *EFFECTS, *VARIANTS, *("+".join(p) for p in PAIRS)),
+    "plant": ("none", *REAL_EFFECTS, *("+".join(p) for p in PLANT_PAIRS)),
+}
 
 
 def deviations(rng: np.random.Generator, nominal: ModelParams) -> tuple[dict, dict]:
@@ -121,13 +152,15 @@ class Case:
 
     index: int
     kind: str
-    effects: dict[str, dict]  #: effect -> parameters switched on
+    source: str  #: plant | model
+    effects: dict[str, dict]  #: effect (the plant's or the model's) -> parameters switched on
     seed: int
     deviations: dict = field(default_factory=dict)  #: raw parameter changes (the bench)
     knob_truth: dict = field(default_factory=dict)  #: the calibration factors they amount to
     visible: bool = True  #: the effect shows in the data (else ``none`` is right too)
     deviated: bool = False  #: the parameter deviations show in the data
     verdict: str = ""
+    verdict_subsystem: str = ""
     verdict_params: dict = field(default_factory=dict)
     confidence: float = 0.0
     calibrated: bool = False  #: the diagnosis recalibrated (calibration significant)
@@ -140,8 +173,18 @@ class Case:
 
     @property
     def truth(self) -> str:
-        """The expected answer: the effect family names joined by '+', or none."""
-        return "+".join(sorted(self.effects)) or "none"
+        """The expected answer: the listed effects joined by '+', ``unlisted``, or none."""
+        if self.source == "model":
+            return "+".join(sorted(self.effects)) or "none"
+        listed = {REAL_EFFECTS[e].listed for e in self.effects}
+        return "unlisted" if "unlisted" in listed else "+".join(sorted(listed)) or "none"
+
+    @property
+    def truth_subsystem(self) -> str | None:
+        """The subsystem an unlisted truth lies in."""
+        if self.truth != "unlisted":
+            return None
+        return "+".join(sorted({REAL_EFFECTS[e].subsystem for e in self.effects}))
 
     @property
     def parameters_only(self) -> bool:
@@ -150,51 +193,69 @@ class Case:
 
     @property
     def correct(self) -> bool:
-        """The verdict names the truth (or says none for an invisible truth); a parameters-only
-        case must also be recalibrated, unless its deviations do not show."""
+        """The verdict names the truth (or says none for an invisible truth); an unlisted
+        truth must be answered ``unlisted`` with its subsystem among those named; a
+        parameters-only case must also be recalibrated, unless its deviations do not show."""
         got = "+".join(sorted(self.verdict.split("+"))) if self.verdict != "none" else "none"
         named = got == self.truth or (not self.visible and got == "none")
+        if got == "unlisted" and named:
+            named = set(self.truth_subsystem.split("+")) <= set(self.verdict_subsystem.split("+"))
         if self.parameters_only and self.deviated:
             return named and self.calibrated
         return named
 
-    def bench_params(self) -> ModelParams:
-        """The nominal model moved by the deviations, without the effect."""
-        return ModelParams().with_values(self.deviations)
+    def bench(self) -> ModelParams | PlantSpec:
+        """The nominal parameters moved by the deviations, without the effect."""
+        params = ModelParams().with_values(self.deviations)
+        return PlantSpec(params) if self.source == "plant" else params
 
-    def truth_params(self) -> ModelParams:
-        """The model the data were simulated with."""
-        p = self.bench_params()
+    def truth_model(self) -> ModelParams | PlantSpec:
+        """The model (or plant) the data were recorded on."""
+        truth = self.bench()
         for effect, kw in self.effects.items():
-            p = p.with_effect(effect, **kw)
-        return p
+            truth = truth.with_effect(effect, **kw)
+        return truth
 
 
-def make_cases(n: int, seed: int, deviate: bool = True) -> list[Case]:
-    """``n`` cases cycling through :data:`KINDS_DEVIATED` (with parameter deviations) or
-    :data:`KINDS`, sizes drawn with ``seed``."""
+def _draw(kind: str, source: str, rng: np.random.Generator) -> dict[str, dict]:
+    if kind == "none":
+        return {}
+    if source == "model":
+        if kind in VARIANTS:
+            effect, sampler = VARIANTS[kind]
+            return {effect: sampler(rng)}
+        return {e: SIZES[e](rng) for e in kind.split("+")}
+    names = kind.split("+")
+    out = {names[0]: REAL_EFFECTS[names[0]].sample(rng)}
+    for weak in names[1:]:
+        out[weak] = WEAK[weak](rng)
+    return out
+
+
+def make_cases(n: int, seed: int, deviate: bool = True, source: str = "plant") -> list[Case]:
+    """``n`` cases cycling through :data:`KINDS` of ``source`` (with parameter deviations,
+    ``none`` twice per cycle), sizes drawn with ``seed``."""
+    if source not in SOURCES:
+        raise ValueError(f"source must be one of {SOURCES}, got {source!r}")
     rng = np.random.default_rng(seed)
-    kinds = KINDS_DEVIATED if deviate else KINDS
+    kinds = KINDS[source]
+    if deviate:
+        kinds = ("none", *kinds)
     cases = []
     for i in range(n):
         kind = kinds[i % len(kinds)]
-        if kind == "none":
-            effects: dict[str, dict] = {}
-        elif kind in VARIANTS:
-            effect, sampler = VARIANTS[kind]
-            effects = {effect: sampler(rng)}
-        else:
-            effects = {e: SIZES[e](rng) for e in kind.split("+")}
+        effects = _draw(kind, source, rng)
         case_seed = int(rng.integers(1, 2**31 - 1))
         changes, knobs = deviations(rng, ModelParams()) if deviate else ({}, {})
-        cases.append(Case(i, "parameters_only" if deviate and kind == "none" else kind,
+        cases.append(Case(i, "parameters_only" if deviate and kind == "none" else kind, source,
                           effects, case_seed, changes, knobs))
     return cases
 
 
-def signature(a: ModelParams, b: ModelParams, dataset_dir: Path) -> float:
-    """Noise-free difference between models ``a`` and ``b`` on the dataset's commands, as a
-    fraction of the sensor noise variance (signals averaged)."""
+def signature(a: ModelParams | PlantSpec, b: ModelParams | PlantSpec,
+              dataset_dir: Path) -> float:
+    """Noise-free difference between models (or plants) ``a`` and ``b`` on the dataset's
+    commands, as a fraction of the sensor noise variance (signals averaged)."""
     ds = read_dataset(dataset_dir)
     nominal = ModelParams()
     sigma = {"y": nominal["sensors.position_sigma"], "p1": nominal["sensors.pressure_sigma"],
@@ -202,39 +263,54 @@ def signature(a: ModelParams, b: ModelParams, dataset_dir: Path) -> float:
     ratios = []
     for entry, exp in ds:
         changes = {"mechanics.locked": entry.locked, "sensors.noise": False}
-        ta = simulate(a.with_values(changes), exp.u)
-        tb = simulate(b.with_values(changes), exp.u)
+        ta, tb = (simulate_plant(m.with_values(changes), exp.u) if isinstance(m, PlantSpec)
+                  else simulate(m.with_values(changes), exp.u) for m in (a, b))
         for s in (("p1", "p2") if entry.locked else ("y", "p1", "p2")):
             d = getattr(ta, f"{s}_meas") - getattr(tb, f"{s}_meas")  # as the sensors read them
             ratios.append(float(np.mean(d ** 2)) / sigma[s] ** 2)
     return float(np.mean(ratios))
 
 
-def run_selfcheck(n: int, seed: int, make_dataset: Callable[[ModelParams, Path, int], None],
+def record(truth: ModelParams | PlantSpec, root: Path, seed: int) -> None:
+    """The default campaign recorded on ``truth`` (the plant or the model) into ``root``."""
+    if isinstance(truth, PlantSpec):
+        from jetpipe_ros.plant import campaign_dataset as on_plant
+
+        on_plant(truth, root, seed)
+    else:
+        from jetpipe_ros.diagnosis.cli import campaign_dataset as on_model
+
+        on_model(truth, root, seed)
+
+
+def run_selfcheck(n: int, seed: int,
+                  make_dataset: Callable[[ModelParams | PlantSpec, Path, int], None] = record,
                   out_dir: Path | None = None, workers: int = 2,
-                  progress: Callable[[str], None] = print, deviate: bool = True) -> dict:
-    """Run ``n`` cases; ``make_dataset(params, root, seed)`` writes a noisy dataset to root."""
-    cases = make_cases(n, seed, deviate)
+                  progress: Callable[[str], None] = print, deviate: bool = True,
+                  source: str = "plant") -> dict:
+    """Run ``n`` cases; ``make_dataset(truth, root, seed)`` writes a noisy dataset to root."""
+    cases = make_cases(n, seed, deviate, source)
     work = Path(tempfile.mkdtemp(prefix="jetpipe-selfcheck-"))
     began = time.perf_counter()
     try:
         for case in cases:
             t0 = time.perf_counter()
             data = work / f"case{case.index:02d}"
-            truth = case.truth_params()
+            truth = case.truth_model()
             make_dataset(truth.with_values({"sensors.noise": True,
                                             "sensors.seed": case.seed % 100000}), data,
                          case.seed)
-            bench = case.bench_params()
+            bench = case.bench()
             case.visible = not case.effects or signature(truth, bench, data) >= VISIBLE
-            case.deviated = bool(case.deviations) and \
-                signature(bench, ModelParams(), data) >= VISIBLE
+            nominal = PlantSpec() if case.source == "plant" else ModelParams()
+            case.deviated = bool(case.deviations) and signature(bench, nominal, data) >= VISIBLE
             # Each case's outputs are kept beside the summary, the truth with them.
             out = (out_dir / "cases" if out_dir else work) / f"case{case.index:02d}"
             result = diagnose(data, out, workers=workers, quiet=True)
-            (out / "truth.yaml").write_text(truth.to_ros_yaml(only_changed=True))
+            (out / "truth.yaml").write_text(_truth_yaml(truth))
             v = result["verdict"]
             case.verdict, case.verdict_params = v["effect"], v["params"]
+            case.verdict_subsystem = v["subsystem"]
             case.confidence = v["confidence"]
             cal = result["calibration"]
             case.calibrated, case.knobs = cal["significant"], cal["knobs"]
@@ -243,7 +319,7 @@ def run_selfcheck(n: int, seed: int, make_dataset: Callable[[ModelParams, Path, 
                                                     result["gap"]["augmented"])
             case.shrinkage = result["gap"]["shrinkage"]
             case.seconds = time.perf_counter() - t0
-            progress(f"[{case.index + 1}/{n}] {case.kind:26s} truth {case.truth:28s} -> "
+            progress(f"[{case.index + 1}/{n}] {case.kind:42s} truth {case.truth:28s} -> "
                      f"{case.verdict:28s} {'ok ' if case.correct else 'MISS'} "
                      f"{'recalibrated ' if case.calibrated else ''}"
                      f"shrinkage {100 * case.shrinkage:4.0f} %  ({case.seconds:.0f} s)")
@@ -258,6 +334,12 @@ def run_selfcheck(n: int, seed: int, make_dataset: Callable[[ModelParams, Path, 
     return summary
 
 
+def _truth_yaml(truth: ModelParams | PlantSpec) -> str:
+    if isinstance(truth, PlantSpec):
+        return yaml.safe_dump({"plant": truth.describe()}, sort_keys=False)
+    return truth.to_ros_yaml(only_changed=True)
+
+
 def summarise(cases: list[Case], seconds: float) -> dict:
     """Accuracy, confusion matrix, parameter and calibration recovery and shrinkage."""
     labels = sorted({c.truth for c in cases} | {c.verdict for c in cases})
@@ -265,7 +347,7 @@ def summarise(cases: list[Case], seconds: float) -> dict:
                      for v in labels} for t in sorted({c.truth for c in cases})}
     recovery = []
     for c in cases:
-        if c.correct and len(c.effects) == 1 and c.kind in EFFECTS:
+        if c.correct and len(c.effects) == 1 and c.truth in EFFECTS:
             (effect, truth), = c.effects.items()
             for k, x in truth.items():
                 got = c.verdict_params.get(k)
@@ -284,8 +366,11 @@ def summarise(cases: list[Case], seconds: float) -> dict:
     with_gap = [c for c in cases if (c.effects and c.visible) or c.deviated]
     with_effect = [c for c in cases if c.effects]
     params_only = [c for c in cases if c.parameters_only]
+    unlisted = [c for c in cases if c.truth == "unlisted"]
+    singles = [c for c in cases if len(c.effects) == 1 and c.visible and c.truth != "unlisted"]
     return {
         "cases": len(cases), "seconds": seconds,
+        "source": cases[0].source if cases else None,
         "deviations": any(c.deviations for c in cases),
         "top1_accuracy": float(np.mean([c.correct for c in cases])),
         "effect_accuracy": float(np.mean([c.correct for c in with_effect]))
@@ -293,6 +378,8 @@ def summarise(cases: list[Case], seconds: float) -> dict:
         "none_correct": all(c.correct for c in cases if not c.effects),
         "variant_accuracy": float(np.mean([c.correct for c in cases if c.kind in VARIANTS]))
         if any(c.kind in VARIANTS for c in cases) else None,
+        "unlisted_accuracy": float(np.mean([c.correct for c in unlisted])) if unlisted else None,
+        "least_single_shrinkage": float(min(c.shrinkage for c in singles)) if singles else None,
         "parameters_only": {
             "cases": len(params_only),
             "accuracy": float(np.mean([c.correct for c in params_only])),
@@ -309,9 +396,11 @@ def summarise(cases: list[Case], seconds: float) -> dict:
         "median_knob_error": float(np.median([abs(k["error"]) for k in knobs]))
         if knobs else None,
         "confusion": confusion, "recovery": recovery, "knob_recovery": knobs,
-        "results": [{"case": c.index, "kind": c.kind, "truth": c.truth, "effects": c.effects,
+        "results": [{"case": c.index, "kind": c.kind, "source": c.source, "truth": c.truth,
+                     "truth_subsystem": c.truth_subsystem, "effects": c.effects,
                      "deviations": c.knob_truth, "visible": c.visible, "deviated": c.deviated,
-                     "verdict": c.verdict, "params": c.verdict_params,
+                     "verdict": c.verdict, "subsystem": c.verdict_subsystem,
+                     "params": c.verdict_params,
                      "calibrated": c.calibrated, "knobs": c.knobs,
                      "recalibration_shrinkage": c.recalibration_shrinkage,
                      "confidence": c.confidence, "correct": c.correct,
@@ -324,7 +413,7 @@ def render(summary: dict) -> str:
     """The self-check as Markdown: headline figures, confusion matrix, parameter recovery."""
     dev = "with" if summary["deviations"] else "without"
     lines = [f"# jetpipe selfcheck: {summary['cases']} cases in {summary['seconds']:.0f} s, "
-             f"{dev} parameter deviations", "",
+             f"data from the {summary['source']}, {dev} parameter deviations", "",
              f"- top-1 accuracy: {100 * summary['top1_accuracy']:.0f} %"]
     if summary["effect_accuracy"] is not None:
         lines.append(f"- top-1 unmodelled effect (cases with an effect): "
@@ -338,8 +427,14 @@ def render(summary: dict) -> str:
                      f"{100 * po['median_recalibration_shrinkage']:.0f} % of the held-out gap "
                      f"(median; least {100 * po['min_recalibration_shrinkage']:.0f} %)")
     if summary["variant_accuracy"] is not None:
-        lines.append(f"- accuracy on effects in a form no candidate has: "
+        lines.append(f"- accuracy on the simulator's other forms: "
                      f"{100 * summary['variant_accuracy']:.0f} %")
+    if summary["unlisted_accuracy"] is not None:
+        lines.append(f"- effects on no list answered `unlisted` with their subsystem: "
+                     f"{100 * summary['unlisted_accuracy']:.0f} %")
+    if summary["least_single_shrinkage"] is not None:
+        lines.append(f"- least held-out shrinkage of a visible single listed effect: "
+                     f"{100 * summary['least_single_shrinkage']:.0f} %")
     if summary["median_shrinkage"] is not None:
         lines.append(f"- median held-out shrinkage (cases with a visible gap): "
                      f"{100 * summary['median_shrinkage']:.0f} %")
@@ -356,14 +451,14 @@ def render(summary: dict) -> str:
               "| truth | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for t, row in conf.items():
         lines.append(f"| {t} | " + " | ".join(str(row.get(c, 0) or "") for c in cols) + " |")
-    lines += ["", "## Cases", "", "| # | kind | truth | verdict | recalibrated | ok | "
-              "shrinkage | recalibration alone | confidence |",
-              "|---|---|---|---|---|---|---|---|---|"]
+    lines += ["", "## Cases", "", "| # | kind | truth | verdict | subsystem | recalibrated | ok "
+              "| shrinkage | recalibration alone | confidence |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
     for r in summary["results"]:
         ok = "yes" if r["correct"] else "**no**"
         vis = "" if r["visible"] else " (too small to see)"
         lines.append(f"| {r['case']} | {r['kind']}{vis} | {r['truth']} | {r['verdict']} | "
-                     f"{'yes' if r['calibrated'] else 'no'} | {ok} "
+                     f"{r['subsystem']} | {'yes' if r['calibrated'] else 'no'} | {ok} "
                      f"| {100 * r['shrinkage']:.0f} % | "
                      f"{100 * r['recalibration_shrinkage']:.0f} % | {r['confidence']:.2f} |")
     if summary["recovery"]:
