@@ -1,45 +1,143 @@
-"""jetpipe selfcheck, small: withheld truths are found, `none` is answered, nothing leaks."""
+"""jetpipe selfcheck, small: withheld truths (the plant's and the model's) are found, `none` and
+`unlisted` are scored as specified, the bench deviations are the raw parameters, nothing leaks."""
 
+import numpy as np
 import pytest
 import yaml
 
+from jetpipe_ros.dataset import Entry, write_dataset
 from jetpipe_ros.diagnosis import selfcheck
-from test_diagnosis import make_dataset
+from jetpipe_ros.diagnosis.calibration import CALIBRATION
+from jetpipe_ros.model import ModelParams
+from jetpipe_ros.model.params import end_stop_volumes
+from jetpipe_ros.plant import REAL_EFFECTS, PlantSpec
+from jetpipe_ros.plant import simulate as simulate_plant
+from test_diagnosis import _experiments, make_dataset
 
 
-def test_cases_cycle_through_every_kind_with_realistic_sizes():
-    cases = selfcheck.make_cases(len(selfcheck.KINDS), seed=1)
-    assert [c.kind for c in cases] == list(selfcheck.KINDS)
+def test_model_cases_cycle_through_every_kind_with_realistic_sizes():
+    kinds = selfcheck.KINDS["model"]
+    cases = selfcheck.make_cases(len(kinds), seed=1, deviate=False, source="model")
+    assert [c.kind for c in cases] == list(kinds)
     lag = next(c for c in cases if c.kind == "valve_lag")
     assert 10.0 <= lag.effects["valve_lag"]["corner_frequency"] <= 60.0
     orifice = next(c for c in cases if c.kind == "orifice_leak")
     assert orifice.truth == "leakage" and orifice.effects["leakage"]["form"] == "orifice"
     assert next(c for c in cases if "+" in c.kind).truth.count("+") == 1
+    assert not any(c.deviations for c in cases)
+
+
+def test_plant_cases_cover_every_real_effect_pairs_and_parameters_only():
+    kinds = ("none", *selfcheck.KINDS["plant"])
+    cases = selfcheck.make_cases(len(kinds), seed=3)
+    assert [c.kind for c in cases[:2]] == ["parameters_only"] * 2
+    assert {c.kind for c in cases} >= set(REAL_EFFECTS)
+    cushion = next(c for c in cases if c.kind == "end_stop_cushion")
+    assert cushion.truth == "unlisted" and cushion.truth_subsystem == "mechanics"
+    offset = next(c for c in cases if c.kind == "null_offset")
+    assert offset.truth == "unlisted" and offset.truth_subsystem == "valve"
+    pair = next(c for c in cases if c.kind == "transport_delay+iso6358_leak")
+    assert pair.truth == "leakage+valve_delay"
+    # The weak member of a pair: a leak to atmosphere only, below the single effect's sizes.
+    assert pair.effects["iso6358_leak"]["cross_conductance"] == 0.0
+    assert pair.effects["iso6358_leak"]["atmosphere_conductance"] < 1e-10
+    assert all(c.source == "plant" and c.deviations for c in cases)
+    assert isinstance(cushion.truth_model(), PlantSpec)
+
+
+def test_deviations_move_raw_parameters_as_the_knobs_they_amount_to():
+    rng = np.random.default_rng(7)
+    nominal = ModelParams()
+    changes, knobs = selfcheck.deviations(rng, nominal)
+    bench = nominal.with_values(changes)
+    assert set(knobs) == {k.name for k in CALIBRATION.knobs}
+    # Not the knobs' own parameters only: the torque motor, the gas, the piston, Stribeck.
+    assert {"valve.magnetic_stiffness", "valve.back_emf_constant", "chamber.temperature",
+            "chamber.piston_area", "friction.exit.stribeck_velocity"} <= set(changes)
+    stops, nominal_stops = end_stop_volumes(bench), end_stop_volumes(nominal)
+    assert stops[0] / nominal_stops[0] == pytest.approx(knobs["dead_volume_1"], rel=1e-9)
+    assert stops[1] / nominal_stops[1] == pytest.approx(knobs["dead_volume_2"], rel=1e-9)
+    temp = bench["chamber.temperature"] / nominal["chamber.temperature"]
+    assert knobs["flow_gain_charge"] == pytest.approx(bench["flow.gain_charge"] * temp)
+    for k, v in knobs.items():  # the stated sizes
+        assert abs(v - 1.0) <= (0.35 if "friction" in k or "viscous" in k else 0.25), k
+
+
+def test_an_invisible_truth_accepts_none():
+    case = selfcheck.Case(0, "moving_mass", "model", {"moving_mass": {"mass": 1.05}}, seed=1,
+                          visible=False, verdict="none")
+    assert case.correct
+    case.visible = True
+    assert not case.correct
+
+
+def test_an_unlisted_truth_needs_its_subsystem():
+    case = selfcheck.Case(0, "null_offset", "plant", {"null_offset": {"offset": 0.1}}, seed=1,
+                          verdict="unlisted", verdict_subsystem="valve")
+    assert case.correct
+    case.verdict_subsystem = "valve+chamber"  # the valve among those named
+    assert case.correct
+    case.verdict_subsystem = "mechanics"
+    assert not case.correct
+    case.verdict, case.verdict_subsystem = "none", "none"
+    assert not case.correct
+
+
+def test_a_parameters_only_case_needs_the_recalibration():
+    case = selfcheck.Case(0, "parameters_only", "plant", {}, seed=1, deviations={"x": 1},
+                          deviated=True, verdict="none", calibrated=False)
+    assert not case.correct
+    case.calibrated = True
+    assert case.correct
+
+
+def _plant_dataset(root, spec, seed):
+    """The small campaign of test_diagnosis recorded on the plant."""
+    out = []
+    for k, (name, u, locked, role) in enumerate(_experiments()):
+        s = spec.with_values({"mechanics.locked": locked, "sensors.seed": seed * 10 + k})
+        tr = simulate_plant(s, u)
+        out.append((Entry(f"{name}.csv", piston="locked" if locked else "free", role=role),
+                    {"t": tr.t, "u": tr.u, "y": tr.y_meas, "p1": tr.p1_meas,
+                     "p2": tr.p2_meas}))
+    return write_dataset(root, out)
 
 
 def test_small_selfcheck_scores_the_diagnosis(tmp_path, monkeypatch):
     written = []
 
-    def build(params, root, seed):
-        make_dataset(root, params, seed=seed % 1000)
+    def build(truth, root, seed):
+        if isinstance(truth, PlantSpec):
+            _plant_dataset(root, truth, seed % 1000)
+        else:
+            make_dataset(root, truth, seed=seed % 1000)
         written.append(yaml.safe_load((root / "dataset.yaml").read_text()))
 
-    kinds = ("none", "valve_lag", "heat_transfer_thermal")
-    monkeypatch.setattr(selfcheck, "KINDS", kinds)
+    monkeypatch.setitem(selfcheck.KINDS, "model", ("none", "valve_lag"))
     lines = []
-    summary = selfcheck.run_selfcheck(3, seed=2, make_dataset=build, out_dir=tmp_path,
-                                      progress=lines.append)
-    # The heat-transfer truth has no candidate of its form: the polytropic one stands in.
-    assert [r["verdict"] for r in summary["results"]] == ["none", "valve_lag", "thermal"]
+    summary = selfcheck.run_selfcheck(2, seed=2, make_dataset=build, out_dir=tmp_path,
+                                      progress=lines.append, deviate=False, source="model")
+    assert [r["verdict"] for r in summary["results"]] == ["none", "valve_lag"]
     assert summary["top1_accuracy"] == 1.0 and summary["none_correct"]
-    assert summary["variant_accuracy"] == 1.0
-    lag, thermal = summary["results"][1:]
-    assert lag["shrinkage"] >= 0.9 and thermal["shrinkage"] >= 0.3
+    lag = summary["results"][1]
+    assert lag["shrinkage"] >= 0.9
     (rec,) = summary["recovery"]
     assert rec["param"] == "corner_frequency" and rec["rel_error"] < 0.1
     assert summary["confusion"]["valve_lag"]["valve_lag"] == 1
-    assert len(lines) == 3 and "valve_lag" in lines[1]
-    assert (tmp_path / "selfcheck.md").read_text().startswith("# jetpipe selfcheck: 3 cases")
+    assert len(lines) == 2 and "valve_lag" in lines[1]
+    md = (tmp_path / "selfcheck.md").read_text()
+    assert md.startswith("# jetpipe selfcheck: 2 cases") and "from the model" in md
+    assert (tmp_path / "cases" / "case01" / "diagnosis.json").exists()
+    assert "valve_lag" in (tmp_path / "cases" / "case01" / "truth.yaml").read_text()
+    # A delay in the plant's continuous form (not quantised to the model's sub-steps).
+    monkeypatch.setitem(selfcheck.KINDS, "plant", ("transport_delay",))
+    plant = selfcheck.run_selfcheck(1, seed=5, make_dataset=build, out_dir=tmp_path / "plant",
+                                    progress=lines.append, deviate=False, source="plant")
+    (r,) = plant["results"]
+    assert r["verdict"] == "valve_delay" and r["correct"]
+    assert r["params"]["delay"] == pytest.approx(r["effects"]["transport_delay"]["delay"],
+                                                 abs=3e-4)
+    assert "plant" in (tmp_path / "plant" / "cases" / "case00" / "truth.yaml").read_text()
     # The diagnosis saw only measurements: the dataset index carries no truth.
     for index in written:
         assert set(index) == {"experiments"}
@@ -47,24 +145,16 @@ def test_small_selfcheck_scores_the_diagnosis(tmp_path, monkeypatch):
                    for e in index["experiments"])
 
 
-@pytest.mark.parametrize("kind", ["moving_mass"])
-def test_an_invisible_truth_accepts_none(kind):
-    case = selfcheck.Case(0, kind, {"moving_mass": {"mass": 1.05}}, seed=1, visible=False,
-                          verdict="none")
-    assert case.correct
-    case.visible = True
-    assert not case.correct
-
-
 def test_selfcheck_datasets_are_the_default_campaign(tmp_path):
     from jetpipe_ros.campaign import default_campaign
     from jetpipe_ros.dataset import read_dataset
-    from jetpipe_ros.diagnosis.cli import campaign_dataset
     from jetpipe_ros.diagnosis.data import prepare
-    from jetpipe_ros.model import ModelParams
 
-    campaign_dataset(ModelParams().with_values({"sensors.noise": True}), tmp_path / "d", seed=7)
-    prep = prepare(read_dataset(tmp_path / "d"))
-    assert [r.name for r in prep.records] == [e.name for e in default_campaign().experiments]
-    assert prep.seconds("holdout") >= 10.0 and prep.seconds("train") >= 60.0
-    assert prep.noise["p1"] == pytest.approx(500.0, rel=0.1)
+    for truth in (ModelParams(), PlantSpec()):
+        root = tmp_path / type(truth).__name__
+        selfcheck.record(truth.with_values({"sensors.noise": True}), root, seed=7)
+        prep = prepare(read_dataset(root))
+        assert [r.name for r in prep.records] == [e.name
+                                                  for e in default_campaign().experiments]
+        assert prep.seconds("holdout") >= 10.0 and prep.seconds("train") >= 60.0
+        assert prep.noise["p1"] == pytest.approx(500.0, rel=0.1)
