@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from jetpipe_ros.diagnosis.candidates import Knob, KnobGroup
+from jetpipe_ros.diagnosis.candidates import CANDIDATES, Knob, KnobGroup
 from jetpipe_ros.model import ModelParams
 from jetpipe_ros.model.params import end_stop_volumes
 
@@ -120,3 +120,8 @@ def describe(values: dict[str, float], least: float = 0.02) -> list[str]:
         words.append(f"{DESCRIPTIONS[k.name][0]} {abs(f - 1.0):.0%} {sense}")
     return words
 
+
+
+def group(name: str) -> KnobGroup:
+    """The knob group of a candidate (``effect`` or ``effect:form``), or the calibration."""
+    return CALIBRATION if name == NAME else CANDIDATES[name]

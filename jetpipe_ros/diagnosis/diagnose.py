@@ -34,7 +34,7 @@ from jetpipe_ros.diagnosis import calibration
 from jetpipe_ros.diagnosis.calibration import CALIBRATION
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate, effect_of
 from jetpipe_ros.diagnosis.data import SIGNALS, Prepared, prepare, swapped
-from jetpipe_ros.diagnosis.fit import BUDGET, Fit
+from jetpipe_ros.diagnosis.fit import BUDGET, Fit, uncertainty
 from jetpipe_ros.diagnosis.jobs import Fitter, Job
 from jetpipe_ros.diagnosis.localize import by_regime, frequency_response, position_error_pct
 from jetpipe_ros.diagnosis import residuals
@@ -311,9 +311,10 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
             (effect_alone,) = rank([b], nom_hold, nom_windows, dt)
     settled = settle(cal_row, on_cal_verdict, alone_verdict, given, effect_alone)
 
-    progress("scoring the augmented model")
+    progress("scoring the augmented model; standard errors of its parameters")
     final = settled.final
     augmented = final.params if final is not None else nominal
+    errors = uncertainty(prepared, nominal, final) if final is not None else {}
     progress("equation errors of the augmented model, against its noise twin")
     stroke = nominal["mechanics.stroke"]
     equations = residuals.locate(prepared, twin(prepared, augmented), augmented, stroke)
@@ -338,7 +339,7 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
         separating = separating_experiment(verdict.winner.fit.params,
                                            verdict.runner_up.fit.params, prepared)
     result = _result(prepared, nominal, settled, ranking, alone_ranking, cal, cal_row, nom_hold,
-                     aug_hold, localization, seen, separating, preds)
+                     aug_hold, localization, seen, separating, preds, errors)
     progress(f"writing {out_dir}")
     _write_outputs(out_dir, result, augmented, prepared, preds)
     progress(f"verdict: {result['verdict']['effect']} "
@@ -402,7 +403,7 @@ def _calibration_json(cal: Fit, cal_row: Ranked, settled: Settled, nom_hold) -> 
 def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
             ranking: Sequence[Ranked], alone_ranking: Sequence[Ranked], cal: Fit,
             cal_row: Ranked, nom_hold, aug_hold, localization: dict, seen: dict[str, float],
-            separating: dict | None, preds: dict) -> dict:
+            separating: dict | None, preds: dict, errors: dict) -> dict:
     verdict = settled.verdict
     win = verdict.winner
     effects = list(win.fit.effect_names) if win else []
@@ -422,6 +423,11 @@ def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
         "form_comparison": _forms(win, ranking) if win else {},
         "subsystem": subsystem,
         "params": (values[effects[0]] if len(effects) == 1 else values) if win else {},
+        # Standard errors of the parameters (curvature of the training error, marginal over
+        # everything fitted with them); None where the error does not depend on one locally.
+        "stderr": ({effect_of(k): v for k, v in errors.items() if k != CAL} if win else {}),
+        "remaining_share": (win.fit.holdout.gap / win.base_gap if win.base_gap > 0 else 0.0)
+        if win else None,
         "confidence": verdict.confidence,
         "reason": reason,
         "missing": missing,
@@ -453,7 +459,8 @@ def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
     return {
         "schema": SCHEMA,
         "verdict": verdict_json,
-        "calibration": _calibration_json(cal, cal_row, settled, nom_hold),
+        "calibration": {**_calibration_json(cal, cal_row, settled, nom_hold),
+                        "stderr": errors.get(CAL, {})},
         "gap": {"metric": METRIC, "nominal": nom_hold.gap, "augmented": aug_hold.gap,
                 "shrinkage": 1.0 - aug_hold.gap / nom_hold.gap if nom_hold.gap > 0 else 0.0,
                 "recalibrated": cal.holdout.gap, "on": "holdout", "paper_metrics": paper},

@@ -21,10 +21,11 @@ import numpy as np
 from scipy import optimize
 
 from jetpipe_ros.diagnosis.calibration import NAME as CALIBRATION
+from jetpipe_ros.diagnosis.calibration import group
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, KnobGroup, effect_of
 from jetpipe_ros.diagnosis.data import Prepared
-from jetpipe_ros.diagnosis.score import (Score, predict_all, residual_vector, score,
-                                         window_errors)
+from jetpipe_ros.diagnosis.score import (Score, effective_samples, predict_all,
+                                         residual_vector, score, window_errors)
 from jetpipe_ros.model import ModelParams
 
 GRID = 9
@@ -193,3 +194,39 @@ def _brent(obj: _Objective, start: np.ndarray) -> None:
     lo, hi = max(start[0] - step, 0.0), min(start[0] + step, 1.0)
     optimize.minimize_scalar(lambda g: obj.cost(np.array([g])), bounds=(lo, hi),
                              method="bounded", options={"xatol": 2e-3, "maxiter": 14})
+
+
+def uncertainty(prepared: Prepared, nominal: ModelParams, fitted: Fit,
+                step: float = 0.01) -> dict[str, dict[str, float | None]]:
+    """Standard errors of every fitted parameter (effects and calibration knobs), from the
+    curvature of the training error at the fit, each marginal over the others: what a
+    parameter trades off against widens its error.
+
+    With N independent pieces of evidence (one per signal and prediction window: the residuals
+    of a window are correlated, :func:`score.effective_samples`) the log-likelihood is about
+    -N/2 log(C) for the training error C = r.r, so the covariance of the knobs is
+    C / N (J^T J)^-1, J the Jacobian of the residuals over all the fit's knobs (central
+    differences, ``step`` in the unit-scaled knobs). A knob the error does not depend on there
+    (a delay between two sub-steps) has no standard error (None).
+    """
+    groups = [group(g) for g in fitted.groups]
+    obj = _Objective(prepared, nominal, groups, budget=10**9)
+    r0 = obj.residuals(fitted.z)
+    jac = np.empty((r0.size, fitted.z.size))
+    for i in range(fitted.z.size):
+        lo, hi = fitted.z.copy(), fitted.z.copy()
+        lo[i] = max(lo[i] - step, 0.0)
+        hi[i] = min(hi[i] + step, 1.0)
+        jac[:, i] = (obj.residuals(hi) - obj.residuals(lo)) / (hi[i] - lo[i])
+    info = jac.T @ jac
+    cov = float(r0 @ r0) / effective_samples(fitted.train, prepared.dt) * np.linalg.pinv(info)
+    out: dict[str, dict[str, float | None]] = {}
+    knobs = [(g.name, k) for g in groups for k in g.knobs]
+    for i, (name, k) in enumerate(knobs):
+        z = float(fitted.z[i])
+        se = None
+        if info[i, i] > 0 and cov[i, i] > 0:  # to the parameter's scale through its map
+            lo, hi = max(z - step, 0.0), min(z + step, 1.0)
+            se = abs(k.to_value(hi) - k.to_value(lo)) / (hi - lo) * float(np.sqrt(cov[i, i]))
+        out.setdefault(name, {})[k.name] = se
+    return out

@@ -11,16 +11,10 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from jetpipe_ros.diagnosis.calibration import CALIBRATION
-from jetpipe_ros.diagnosis.candidates import CANDIDATES, KnobGroup
+from jetpipe_ros.diagnosis.calibration import group
 from jetpipe_ros.diagnosis.data import Prepared
 from jetpipe_ros.diagnosis.fit import BUDGET, Fit, fit
 from jetpipe_ros.model import ModelParams
-
-
-def group(name: str) -> KnobGroup:
-    """The knob group of a candidate effect, or the calibration."""
-    return CALIBRATION if name == CALIBRATION.name else CANDIDATES[name]
 
 
 @dataclass(frozen=True)

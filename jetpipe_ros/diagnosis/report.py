@@ -183,7 +183,11 @@ def summary(result: dict) -> str:
     else:
         params = v["params"] if len(v["effects"]) == 1 else {
             f"{e}.{k}": x for e, d in v["params"].items() for k, x in d.items()}
-        ptxt = ", ".join(f"{k} = {x:.4g}" for k, x in params.items())
+        errs = v["stderr"] if len(v["effects"]) > 1 else v["stderr"].get(v["effects"][0], {})
+        flat_err = {f"{e}.{k}": x for e, d in errs.items() for k, x in d.items()} \
+            if len(v["effects"]) > 1 else errs
+        ptxt = ", ".join(f"{k} = {x:.4g}" + (f" +- {flat_err[k]:.2g}" if flat_err.get(k)
+                                              else "") for k, x in params.items())
         if cal["significant"]:
             lines.append(f"<b>The nominal parameters were off</b> ({html.escape(off)}), "
                          f"<b>and on top of that <code>{html.escape(v['effect'])}</code></b> "
@@ -201,6 +205,8 @@ def summary(result: dict) -> str:
                          f"{html.escape(cmp['chosen'])}</b> (held-out gap "
                          f"{gaps.get(cmp['chosen'], float('nan')):.2f} %"
                          + (f"; the other form: {html.escape(rest)}" if rest else "") + ").")
+        lines.append(f"What the effect leaves of the gap it was judged against: "
+                     f"{100 * v['remaining_share']:.0f} %.")
         words = v["effect_reason"]
         if cal["significant"] and cal["shrinkage_given_effect"] is not None:
             words += (f"; recalibrating the nominal parameters as well removes "

@@ -65,6 +65,11 @@ class Score:
         return {"gap": self.gap, **{s: self.signal_gap(s) for s in self.mse}}
 
 
+def effective_samples(s: Score, dt: float) -> float:
+    """Independent pieces of evidence in a score: one per signal and prediction window."""
+    return max(sum(s.count.values()) * dt / HORIZON, 1.0)
+
+
 def predict_all(params: ModelParams, prepared: Prepared, role: str | None,
                 mode: str = "full") -> list[Prediction | None]:
     """Predictions of the records having ``role`` samples (all records for None), else None."""

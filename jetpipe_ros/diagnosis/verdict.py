@@ -39,8 +39,7 @@ from scipy import stats
 from jetpipe_ros.diagnosis.calibration import NAME as CALIBRATION
 from jetpipe_ros.diagnosis.calibration import describe
 from jetpipe_ros.diagnosis.fit import Fit
-from jetpipe_ros.diagnosis.prediction import HORIZON
-from jetpipe_ros.diagnosis.score import Score
+from jetpipe_ros.diagnosis.score import Score, effective_samples
 from jetpipe_ros.model import EFFECTS
 
 MIN_SHRINKAGE = 0.3
@@ -105,11 +104,6 @@ class Ranked:
                 "removed_over_noise_floor": self.removed_over_floor,
                 "holdout_by_signal": self.fit.holdout.to_json(), "bic": self.bic,
                 "evaluations": self.fit.evaluations, "fit_seconds": self.fit.seconds}
-
-
-def effective_samples(s: Score, dt: float) -> float:
-    """Independent pieces of evidence in a score: one per signal and prediction window."""
-    return max(sum(s.count.values()) * dt / HORIZON, 1.0)
 
 
 def paired_t(before: np.ndarray, after: np.ndarray) -> float:
