@@ -6,11 +6,17 @@ import argparse
 
 
 def _diagnose(args: argparse.Namespace) -> int:
-    from jetpipe_ros.diagnosis.diagnose import diagnose
+    from jetpipe_ros.diagnosis.fleet import dataset_dirs
     from jetpipe_ros.model import ModelParams, load_params
 
     params = load_params(args.params) if args.params else ModelParams()
-    result = diagnose(args.dataset, args.out, params, workers=args.jobs, quiet=args.quiet)
+    dirs, is_fleet = dataset_dirs(args.dataset)
+    if is_fleet:
+        return _fleet(args, dirs, params)
+    from jetpipe_ros.diagnosis.diagnose import diagnose
+
+    result = diagnose(dirs[0], args.out, params, workers=args.jobs, quiet=args.quiet,
+                      scheduler=args.scheduler)
     v, g = result["verdict"], result["gap"]
     print(f"verdict: {v['effect']} (subsystem {v['subsystem']}, confidence "
           f"{v['confidence']:.2f})")
@@ -18,6 +24,28 @@ def _diagnose(args: argparse.Namespace) -> int:
           f"{g['augmented']:.2f} %, shrinkage {100 * g['shrinkage']:.0f} %")
     print(f"report: {args.out}/report.html  augmented model: {args.out}/augmented.yaml")
     return 0
+
+
+def _fleet(args: argparse.Namespace, dirs, params) -> int:
+    import sys
+
+    from jetpipe_ros.diagnosis.fleet import run_fleet
+
+    progress = (lambda line: None) if args.quiet else (
+        lambda line: print(line, file=sys.stderr, flush=True))
+    fleet = run_fleet(dirs, args.out, params, workers=args.jobs, scheduler=args.scheduler,
+                      progress=progress)
+    print(f"{fleet['datasets']} datasets: {fleet['succeeded']} diagnosed, {fleet['failed']} "
+          f"failed")
+    for r in fleet["actuators"]:
+        if r["status"] == "ok":
+            print(f"  {r['name']}: {r['verdict']['effect']} (confidence "
+                  f"{r['verdict']['confidence']:.2f}), held-out gap {r['gap']['nominal']:.2f} "
+                  f"-> {r['gap']['augmented']:.2f} %")
+        else:
+            print(f"  {r['name']}: failed: {r['error']}")
+    print(f"fleet: {args.out}/fleet.html  {args.out}/fleet.json  (one folder per dataset)")
+    return 0 if fleet["failed"] == 0 else 1
 
 
 def campaign_dataset(params, root, seed: int) -> None:
@@ -48,11 +76,20 @@ def add_command(subparsers) -> None:
         "diagnose", help="find where the model departs from a dataset and which effect causes it",
         description="Fit every unmodelled effect on the training experiments of DATASET_DIR, "
                     "judge them on the held-out ones, and write diagnosis.json, report.html and "
-                    "augmented.yaml to OUT_DIR.")
-    p.add_argument("dataset", metavar="DATASET_DIR", help="dataset directory (dataset.yaml)")
+                    "augmented.yaml to OUT_DIR (to OUT_DIR/<dataset name>/ for several "
+                    "datasets, with fleet.json and fleet.html).")
+    p.add_argument("dataset", metavar="DATASET_DIR", nargs="+",
+                   help="dataset directory (dataset.yaml); several, or a quoted glob, diagnose "
+                        "a fleet: one folder of outputs each in OUT_DIR, plus fleet.json and "
+                        "fleet.html (exit status 1 if any dataset failed)")
     p.add_argument("--out", required=True, metavar="OUT_DIR", help="output directory")
     p.add_argument("--params", help="nominal model parameter YAML (default: DESIGN.md s.2)")
-    p.add_argument("--jobs", type=int, default=2, help="parallel fitting processes (default 2)")
+    p.add_argument("--jobs", type=int, default=2,
+                   help="worker processes of the local Dask cluster (default 2; 1: in this "
+                        "process); ignored with --scheduler")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="Dask scheduler to run on, e.g. tcp://host:8786 (default: the "
+                        "DASK_SCHEDULER_ADDRESS environment variable, else a local cluster)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=_diagnose)
     c = subparsers.add_parser(
