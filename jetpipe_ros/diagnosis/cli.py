@@ -61,12 +61,16 @@ def _selfcheck(args: argparse.Namespace) -> int:
     from jetpipe_ros.diagnosis.selfcheck import run_selfcheck
 
     summary = run_selfcheck(args.cases, args.seed, out_dir=Path(args.out), workers=args.jobs,
-                            deviate=args.deviations, source=args.truth)
+                            deviate=args.deviations, source=args.truth,
+                            scheduler=args.scheduler, restart=args.restart)
+    lo, hi = summary["top1_interval"]
     print(f"\n{summary['cases']} cases in {summary['seconds']:.0f} s: top-1 accuracy "
-          f"{100 * summary['top1_accuracy']:.0f} %, none correct: "
+          f"{100 * summary['top1_accuracy']:.0f} % ({100 * lo:.0f}-{100 * hi:.0f} %, "
+          f"{100 * summary['confidence_level']:.0f} % Wilson interval), none correct: "
           f"{'yes' if summary['none_correct'] else 'no'}, median held-out shrinkage "
           f"{100 * (summary['median_shrinkage'] or 0):.0f} %")
-    print(f"confusion matrix and parameter recovery: {args.out}/selfcheck.md")
+    print(f"accuracy per effect, confusion matrix, shrinkage, parameter recovery: "
+          f"{args.out}/selfcheck.md")
     return 0
 
 
@@ -101,7 +105,17 @@ def add_command(subparsers) -> None:
     c.add_argument("--cases", type=int, default=30, help="number of cases (default 30)")
     c.add_argument("--seed", type=int, default=0, help="seed of sizes and noise (default 0)")
     c.add_argument("--out", default="out/selfcheck", help="where selfcheck.md/json go")
-    c.add_argument("--jobs", type=int, default=2, help="parallel fitting processes (default 2)")
+    c.add_argument("--jobs", type=int, default=2,
+                   help="worker processes of the local Dask cluster, one case each at a time "
+                        "(default 2; 1: in this process); ignored with --scheduler")
+    c.add_argument("--scheduler", metavar="ADDRESS",
+                   help="Dask scheduler to run the cases on, e.g. tcp://host:8786 (default: "
+                        "the DASK_SCHEDULER_ADDRESS environment variable, else a local "
+                        "cluster)")
+    c.add_argument("--restart", action="store_true",
+                   help="discard the cases an earlier run left in OUT (by default a run with "
+                        "the same --cases, --seed, --truth, --deviations resumes them, and "
+                        "another configuration is refused)")
     c.add_argument("--truth", choices=("plant", "model"), default="plant",
                    help="where the data come from: the plant written apart from the candidates "
                         "(default), or the simulator's own effects")
