@@ -372,6 +372,8 @@ def _configuration(cases_dir: Path, config: dict, restart: bool) -> dict[int, Ca
                                  f"{flags(old)}, not {flags(config)}: give another --out, or "
                                  f"--restart to discard it")
     cases_dir.mkdir(parents=True, exist_ok=True)
+    for stale in cases_dir.glob(".case*"):  # outputs a stopped run was writing
+        shutil.rmtree(stale, ignore_errors=True)
     _write_atomic(stored, json.dumps(config, indent=1))
     done = {}
     for path in sorted(cases_dir.glob(f"case*/{RESULT}")):
