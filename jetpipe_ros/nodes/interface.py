@@ -18,6 +18,8 @@ from typing import Any
 
 import yaml
 
+from jetpipe_ros.fileio import load_yaml
+
 PACKAGE = "jetpipe_ros"
 CONTRACT = "msg_defs/topics.yaml"
 
@@ -101,7 +103,7 @@ def _ament_share() -> Path | None:
 
 def _parse(path: Path) -> dict[str, Topic]:
     try:
-        doc = yaml.safe_load(path.read_text())
+        doc = load_yaml(path)
         profiles = {key: Qos(**spec) for key, spec in doc["qos"].items()}
         topics = {}
         for entry in doc["topics"]:
