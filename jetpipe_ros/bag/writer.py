@@ -5,22 +5,36 @@ and Iron read only version 8. The messages are the CDR bytes rclpy receives with
 subscriptions (identical to what rosbags serializes), so nothing is converted on the way.
 ``close()`` finishes the MCAP file and writes ``metadata.yaml``; a bag closed that way holds
 every message written before.
+
+A writer that is never closed (its process killed with SIGKILL, the machine losing power)
+leaves a bag without ``metadata.yaml`` and an MCAP file without summary or footer, which
+:mod:`jetpipe_ros.bag.recover` still reads up to the last complete chunk. So that this loses
+little, the writer syncs (:meth:`BagWriter.sync`: the pending chunk closed, written and
+``fsync``-ed) whenever :data:`SYNC_PERIOD` has passed since the last sync, at the first
+:meth:`~BagWriter.write` after it or when its owner calls :meth:`~BagWriter.sync_if_due`: a
+recording killed at any moment keeps every message written more than :data:`SYNC_PERIOD`
+before the kill (plus the time the owner takes to call it while idle).
 """
 
 from __future__ import annotations
 
-import json
+import os
+import time
 from pathlib import Path
 from typing import Any
 
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
+from jetpipe_ros.fileio import to_json
+
 #: rosbag2 metadata version written (Jazzy and later).
 METADATA_VERSION = 9
 #: The recorder's own topic: one std_msgs/String JSON document per campaign event.
 EVENTS_TOPIC = "/id_recorder/events"
 TYPESTORE = Stores.ROS2_KILTED
+#: Longest time [s, wall clock] a written message waits before it is synced to disk.
+SYNC_PERIOD = 1.0
 
 
 class BagWriter:
@@ -37,6 +51,9 @@ class BagWriter:
         self._writer = Writer(self.path, version=METADATA_VERSION,
                               storage_plugin=StoragePlugin.MCAP)
         self._writer.open()
+        self._storage = self._writer.storage  # the MCAP file being written (rosbags McapWriter)
+        _fsync(self.path)
+        _fsync(self.path.parent)
         self._connections: dict[str, Any] = {}
         self.counts: dict[str, int] = {}
         for name, msgtype in {**topics, EVENTS_TOPIC: "std_msgs/msg/String"}.items():
@@ -44,15 +61,37 @@ class BagWriter:
                 name, msgtype, typestore=self._store)
             self.counts[name] = 0
         self.closed = False
+        self.synced = time.monotonic()  #: wall time [s, monotonic] of the latest sync
+        self.syncs = 0
 
     def write(self, topic: str, stamp_ns: int, data: bytes | memoryview) -> None:
         """Append one serialized message of ``topic`` with log time ``stamp_ns``."""
         self._writer.write(self._connections[topic], stamp_ns, data)
         self.counts[topic] += 1
+        self.sync_if_due()
+
+    def sync_if_due(self) -> None:
+        """:meth:`sync` if :data:`SYNC_PERIOD` has passed since the last one."""
+        if time.monotonic() - self.synced >= SYNC_PERIOD:
+            self.sync()
+
+    def sync(self) -> None:
+        """Make every message written so far readable from the file after a crash: close the
+        pending MCAP chunk (rosbags otherwise writes one per MiB), flush and fsync the file."""
+        self.synced = time.monotonic()
+        if self.closed:
+            return
+        # rosbags' McapWriter keeps the chunk being filled in memory; close_chunk() writes it
+        # (schemas and channels go with the first one). An empty chunk is not written.
+        if self._storage.chunk.msgs:
+            self._storage.close_chunk()
+        self._storage.bio.flush()
+        os.fsync(self._storage.bio.fileno())
+        self.syncs += 1
 
     def event(self, stamp_ns: int, **fields: Any) -> None:
         """Append a campaign event (JSON in a std_msgs/String) on :data:`EVENTS_TOPIC`."""
-        msg = self._store.types["std_msgs/msg/String"](data=json.dumps(fields))
+        msg = self._store.types["std_msgs/msg/String"](data=to_json(fields, indent=None))
         self.write(EVENTS_TOPIC, stamp_ns,
                    self._store.serialize_cdr(msg, "std_msgs/msg/String"))
 
@@ -61,3 +100,15 @@ class BagWriter:
         if not self.closed:
             self.closed = True
             self._writer.close()
+            for item in self.path.iterdir():  # the MCAP file's tail, metadata.yaml
+                _fsync(item)
+            _fsync(self.path)
+
+
+def _fsync(path: Path) -> None:
+    """fsync a file or directory (a directory: so that its new entries survive a power cut)."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
