@@ -19,6 +19,7 @@ before the kill (plus the time the owner takes to call it while idle).
 from __future__ import annotations
 
 import os
+import shutil
 import time
 from pathlib import Path
 from typing import Any
@@ -41,26 +42,38 @@ class BagWriter:
     """A bag being written: connections by topic name, message counts.
 
     Args:
-        path: bag directory to create (must not exist).
+        path: bag directory to create (must not exist; missing parents are made).
         topics: topic name -> message type (``sensor_msgs/msg/JointState``).
+
+    Raises:
+        OSError, rosbags.rosbag2.WriterError: the bag cannot be created (nothing is left).
     """
 
     def __init__(self, path: str | Path, topics: dict[str, str]) -> None:
         self.path = Path(path)
+        if not str(path).strip():
+            raise FileNotFoundError(2, "empty bag path", str(path))
+        #: directories this writer creates, deepest first (removed again by discard())
+        self._made = [p for p in (self.path, *self.path.parents) if not p.exists()]
         self._store = get_typestore(TYPESTORE)
-        self._writer = Writer(self.path, version=METADATA_VERSION,
-                              storage_plugin=StoragePlugin.MCAP)
-        self._writer.open()
-        self._storage = self._writer.storage  # the MCAP file being written (rosbags McapWriter)
-        _fsync(self.path)
-        _fsync(self.path.parent)
         self._connections: dict[str, Any] = {}
         self.counts: dict[str, int] = {}
-        for name, msgtype in {**topics, EVENTS_TOPIC: "std_msgs/msg/String"}.items():
-            self._connections[name] = self._writer.add_connection(
-                name, msgtype, typestore=self._store)
-            self.counts[name] = 0
-        self.closed = False
+        self.closed = True
+        try:
+            self._writer = Writer(self.path, version=METADATA_VERSION,
+                                  storage_plugin=StoragePlugin.MCAP)
+            self._writer.open()
+            self.closed = False
+            self._storage = self._writer.storage  # the MCAP file (rosbags McapWriter)
+            for name, msgtype in {**topics, EVENTS_TOPIC: "std_msgs/msg/String"}.items():
+                self._connections[name] = self._writer.add_connection(
+                    name, msgtype, typestore=self._store)
+                self.counts[name] = 0
+            _fsync(self.path)
+            _fsync(self.path.parent)
+        except BaseException:
+            self.discard()
+            raise
         self.synced = time.monotonic()  #: wall time [s, monotonic] of the latest sync
         self.syncs = 0
 
@@ -103,6 +116,23 @@ class BagWriter:
             for item in self.path.iterdir():  # the MCAP file's tail, metadata.yaml
                 _fsync(item)
             _fsync(self.path)
+
+    def discard(self) -> None:
+        """Close and delete the bag, and the parent directories this writer made (if empty):
+        for a recording that never started."""
+        if not self.closed:
+            self.closed = True
+            try:
+                self._writer.close()
+            except Exception:  # noqa: BLE001 - it is deleted anyway
+                pass
+        if self._made:
+            shutil.rmtree(self._made[0], ignore_errors=True)
+            for parent in self._made[1:]:
+                try:
+                    parent.rmdir()
+                except OSError:
+                    break
 
 
 def _fsync(path: Path) -> None:
