@@ -77,6 +77,7 @@ def read_signals(bag: str | Path, progress: Callable[[str], None] = print
             names = [c.topic for c in reader.connections]
             wanted = [c for c in reader.connections
                       if _suffix(c.topic) or c.topic == EVENTS_TOPIC]
+            _topics(bag, names)  # before reading
             messages = ((c.topic, c.msgtype, raw)
                         for c, _, raw in reader.messages(connections=wanted))
             return _decode(bag, names, messages)
@@ -91,7 +92,8 @@ def read_signals(bag: str | Path, progress: Callable[[str], None] = print
 def _recovered(bag: Path, mcaps: list[Path], progress: Callable[[str], None]
                ) -> tuple[dict[str, dict[str, np.ndarray]], list[dict]]:
     """Read a bag that was not closed from its MCAP files' record streams."""
-    reports = [StreamReport(m) for m in mcaps]
+    names: list[str] = []  # the channels' topics, filled in while reading
+    reports = [StreamReport(m, topics=names) for m in mcaps]
 
     def messages() -> Iterator[tuple[str, str, bytes]]:
         for path, report in zip(mcaps, reports):
@@ -99,7 +101,6 @@ def _recovered(bag: Path, mcaps: list[Path], progress: Callable[[str], None]
                 if _suffix(topic) or topic == EVENTS_TOPIC:
                     yield topic, msgtype, raw
 
-    names: list[str] = []
     signals, events = _decode(bag, names, messages())
     for report in reports:
         progress(f"recovered {report.describe()}")
@@ -111,11 +112,11 @@ def _suffix(topic: str) -> str | None:
     return next((s for s in SIGNALS if topic == f"/{s}" or topic.endswith(f"/{s}")), None)
 
 
-def _topics(bag: Path, names: list[str], known: set[str]) -> dict[str, str]:
+def _topics(bag: Path, names: list[str]) -> dict[str, str]:
     """{topic: signal suffix} of the bag's topics ``names``; BagError if one is missing or
     ambiguous or there are no campaign events."""
     topics = {_find(bag, names, s): s for s in SIGNALS}
-    if EVENTS_TOPIC not in known:
+    if EVENTS_TOPIC not in names:
         raise BagError(f"{bag}: no {EVENTS_TOPIC} topic: not recorded by id_recorder "
                        f"running a campaign")
     return topics
@@ -124,17 +125,11 @@ def _topics(bag: Path, names: list[str], known: set[str]) -> dict[str, str]:
 def _decode(bag: Path, names: list[str], messages: Iterator[tuple[str, str, bytes]]
             ) -> tuple[dict[str, dict[str, np.ndarray]], list[dict]]:
     """Signals and events from (topic, type, CDR) messages; ``names``: every topic of the bag
-    (filled in while reading if empty, as for a recovered bag)."""
-    if names:  # a closed bag lists its topics: check them before reading
-        _topics(bag, names, set(names))
+    (complete once ``messages`` is exhausted: a recovered bag's are found while reading)."""
     store = get_typestore(TYPESTORE)
-    known = set(names)
     by_topic: dict[str, list[tuple[float, ...]]] = {}
     events = []
     for topic, msgtype, raw in messages:
-        if topic not in known:
-            known.add(topic)
-            names.append(topic)
         msg = store.deserialize_cdr(raw, msgtype)
         if topic == EVENTS_TOPIC:
             events.append(json.loads(msg.data))
@@ -149,7 +144,7 @@ def _decode(bag: Path, names: list[str], messages: Iterator[tuple[str, str, byte
         else:
             row = (stamp, msg.fluid_pressure)
         by_topic.setdefault(topic, []).append(row)
-    topics = _topics(bag, names, known)
+    topics = _topics(bag, names)
     rows = {s: by_topic.get(t, []) for t, s in topics.items()}
     fields = {"joint_states": ("y", "v"), "voltage_applied": ("u", "f_load"),
               "chamber1/pressure": ("p",), "chamber2/pressure": ("p",)}

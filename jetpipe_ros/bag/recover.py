@@ -35,6 +35,7 @@ class StreamReport:
     readable: int = 0  #: bytes up to the end of the last complete record
     messages: int = 0
     counts: dict[str, int] = field(default_factory=dict)  #: messages per topic
+    topics: list[str] = field(default_factory=list)  #: every channel's topic, as found
     start_ns: int | None = None  #: earliest log time [ns]
     end_ns: int | None = None  #: latest log time [ns]
     closed: bool = False  #: the file has its data end record / footer (it was closed)
@@ -47,7 +48,7 @@ class StreamReport:
         lost = self.size - self.readable
         tail = (f"; the last {lost} bytes (an unfinished record) are unreadable ({self.stop})"
                 if lost else "")
-        return (f"{self.path}: read {self.messages} messages on {len(self.counts)} topics"
+        return (f"{self.path}: read {self.messages} messages on {len(self.topics)} topics"
                 f"{span} from the MCAP stream{tail}")
 
 
@@ -78,6 +79,8 @@ def stream_messages(path: str | Path, report: StreamReport | None = None
                     schemas[item.id] = item.name
                 elif isinstance(item, Channel):
                     channels[item.id] = (item.topic, schemas.get(item.schema_id, ""))
+                    if item.topic not in report.topics:
+                        report.topics.append(item.topic)
                 elif isinstance(item, Message) and item.channel_id in channels:
                     topic, msgtype = channels[item.channel_id]
                     report.messages += 1

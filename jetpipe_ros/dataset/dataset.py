@@ -191,10 +191,12 @@ def check_target(root: str | Path, overwrite: bool = False,
 
 def _not_a_dataset(root: Path) -> str | None:
     """Why directory ``root`` is not a dataset directory (None if it is one)."""
+    if not (root / INDEX).is_file():
+        return f"it has no {INDEX}, so it is not a dataset"
     try:
         listed = {Path(e.file).as_posix() for e in read_index(root)}
     except DatasetError as exc:
-        return f"not a dataset ({exc})"
+        return f"its {INDEX} is not a dataset index ({exc})"
     for item in sorted(root.rglob("*")):
         name = item.relative_to(root).as_posix()
         if item.is_symlink() or not (item.is_file() or item.is_dir()):

@@ -333,21 +333,15 @@ def _result(prepared: Prepared, nominal: ModelParams, verdict: Verdict,
 
 def _write_outputs(out_dir: Path, result: dict, augmented: ModelParams, prepared: Prepared,
                    preds: dict) -> None:
+    from jetpipe_ros import fileio
     from jetpipe_ros.diagnosis.report import render
 
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
-    try:
-        (tmp / "diagnosis.json").write_text(json.dumps(result, indent=2, default=_json))
-        header = ("# jetpipe diagnose: the nominal model plus the effect the diagnosis "
-                  f"identified ({result['verdict']['effect']}).\n")
-        (tmp / "augmented.yaml").write_text(header + augmented.to_ros_yaml(only_changed=True))
-        (tmp / "report.html").write_text(render(result, prepared, preds))
-        out_dir.mkdir(parents=True, exist_ok=True)
-        for name in OUTPUTS:
-            os.replace(tmp / name, out_dir / name)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+    header = ("# jetpipe diagnose: the nominal model plus the effect the diagnosis "
+              f"identified ({result['verdict']['effect']}).\n")
+    texts = {"diagnosis.json": fileio.to_json(result) + "\n",  # strict: NaN/inf as null
+             "augmented.yaml": header + augmented.to_ros_yaml(only_changed=True),
+             "report.html": render(result, prepared, preds)}
+    fileio.write_files({out_dir / name: texts[name] for name in OUTPUTS})  # all or none
 
 
 def _json(x):
