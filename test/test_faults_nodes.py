@@ -280,3 +280,14 @@ def test_run_time_parameter_refusals_name_parameter_and_types(launch, ros_contex
         assert set_(Parameter("mechanics.mass", value=-1.0)).successful is False
     finally:
         probe.close()
+
+
+def test_params_file_with_a_key_twice_is_refused(launch, tmp_path):
+    """rcl keeps the last of two equal keys silently; the nodes refuse the file."""
+    path = tmp_path / "twice.yaml"
+    path.write_text("actuator_sim:\n  ros__parameters:\n    mechanics:\n      mass: 2e0\n"
+                    "      stroke: 0.05\n      mass: 3.0\n")
+    sim = launch(["-m", "jetpipe_ros.nodes.actuator_sim", "--ros-args", "--params-file",
+                  str(path)])
+    assert sim.popen.wait(STARTUP) == 2, sim.output
+    assert f"{path}: line 6, column 7: key 'mass' given twice (first at line 4)" in sim.output
