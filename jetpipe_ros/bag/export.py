@@ -229,7 +229,10 @@ def add_command(subparsers) -> None:
         "export", help="convert an id_recorder campaign bag into a dataset (DESIGN.md s.5)",
         description="Read a rosbag2 (MCAP) bag recorded by id_recorder and write one CSV per "
                     "complete experiment (t,u,y,p1,p2,v,f_load) and dataset.yaml.")
-    p.add_argument("bag", help="bag directory (holds metadata.yaml and the .mcap file)")
+    p.add_argument("bag", help="bag directory (holds metadata.yaml and the .mcap file; a bag "
+                               "whose recorder was killed is recovered from the .mcap file)")
     p.add_argument("dataset_dir", help="dataset directory to create")
-    p.add_argument("--overwrite", action="store_true", help="replace a non-empty dataset_dir")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace dataset_dir if it is a dataset written before (dataset.yaml "
+                        "and the files it lists only; never the bag or the current directory)")
     p.set_defaults(func=_run)

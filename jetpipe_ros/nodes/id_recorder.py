@@ -82,7 +82,8 @@ NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
               0.1, 600.0),
     ParamSpec("peer_timeout", 5.0, "A running campaign stops (status 1, experiment marked "
               "incomplete) after this long without a new sample; record mode, without any "
-              "message once the stream began", "s", 0.2, 3600.0),
+              "message once the stream began (more than the simulator's lockstep_kick)", "s",
+              0.5, 3600.0),
     ParamSpec("sample_time", 0.001, "Period of the stamped streams (gap counting)", "s",
               1e-5, 1.0),
     ParamSpec("lead", 4, "Open-loop phases: commands sent ahead of the samples (pipelining; "
@@ -444,16 +445,19 @@ class Recorder(Node):
         never started, or a recording that received nothing, leaves no bag."""
         if self.bag.closed:
             return
-        if (not self.ready if self.campaign is not None else self.heard is None):
+        started = self.ready if self.campaign is not None else any(self.bag.counts.values())
+        if not started:
             self.bag.discard()
             self.get_logger().info(f"nothing recorded; bag {self.bag.path} not kept")
             return
         if self.campaign is not None and not self.done and self._index < len(self._phases):
             phase = self._phases[self._index]
             self._finish(phase, complete=False)
+            what = (f"experiment {phase.label} marked incomplete" if phase.experiment is not None
+                    else "between experiments")
             self.get_logger().warning(
                 f"campaign incomplete: stopped in phase {phase.label} ({self._index + 1} of "
-                f"{len(self._phases)}); that experiment is marked incomplete")
+                f"{len(self._phases)}), {what}")
         self.report()
         self.bag.close()
 
