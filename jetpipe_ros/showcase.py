@@ -206,7 +206,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="out/showcase", help="output directory")
     args = parser.parse_args(argv)
-    out = Path(args.out).resolve()
+    try:
+        out = fileio.output_dir(args.out, "--out").resolve()
+    except fileio.FileError as exc:
+        print(f"showcase: error: {exc}", file=sys.stderr)
+        return 2
     for stale in ("bag", "dataset", "logs", "diagnosis"):  # a previous run's results
         shutil.rmtree(out / stale, ignore_errors=True)
     out.mkdir(parents=True, exist_ok=True)

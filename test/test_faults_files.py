@@ -25,7 +25,7 @@ from jetpipe_ros.bag.writer import TYPESTORE
 from jetpipe_ros.campaign import CampaignError, load_campaign
 from jetpipe_ros.cli import main
 from jetpipe_ros.dataset import DatasetError, Entry, read_dataset, write_dataset
-from jetpipe_ros.model import ModelParams, ParameterError, load_params
+from jetpipe_ros.model import ParameterError, load_params
 from jetpipe_ros.nodes import interface
 
 REPO = Path(__file__).resolve().parent.parent
@@ -368,7 +368,7 @@ def test_cli_file_system_errors(tmp_path):
           str(tmp_path / "s.csv")], ("adir",)),
     ]
     results = run_cli([args for args, _ in cases], ro=True)
-    for (args, needles), result in zip(cases, results):
+    for (_, needles), result in zip(cases, results):
         _one_line_error(result, *needles)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["adir", "cmd.csv", "data", "ro"]
     assert list(ro.iterdir()) == [] and list((tmp_path / "adir").iterdir()) == []

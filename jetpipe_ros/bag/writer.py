@@ -27,7 +27,7 @@ from typing import Any
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from jetpipe_ros.fileio import to_json
+from jetpipe_ros.fileio import DIR_MODE, FILE_MODE, to_json
 
 #: rosbag2 metadata version written (Jazzy and later).
 METADATA_VERSION = 9
@@ -69,6 +69,8 @@ class BagWriter:
                 self._connections[name] = self._writer.add_connection(
                     name, msgtype, typestore=self._store)
                 self.counts[name] = 0
+            os.chmod(self.path, DIR_MODE)  # whatever the umask, as every file the tools write
+            os.chmod(self._storage.path, FILE_MODE)
             _fsync(self.path)
             _fsync(self.path.parent)
         except BaseException:
@@ -114,6 +116,7 @@ class BagWriter:
             self.closed = True
             self._writer.close()
             for item in self.path.iterdir():  # the MCAP file's tail, metadata.yaml
+                os.chmod(item, FILE_MODE)
                 _fsync(item)
             _fsync(self.path)
 

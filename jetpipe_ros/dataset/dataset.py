@@ -31,7 +31,7 @@ from jetpipe_ros import fileio
 from jetpipe_ros.dataset.errors import DatasetError
 from jetpipe_ros.dataset.experiment import REQUIRED, Experiment, read_experiment, write_experiment
 from jetpipe_ros.fileio import load_yaml
-from jetpipe_ros.model.limits import Limits
+from jetpipe_ros.model.limits import NOMINAL, Limits
 
 INDEX = "dataset.yaml"
 PISTON = ("free", "locked")
@@ -142,7 +142,7 @@ def read_index(root: str | Path) -> list[Entry]:
 
 
 def read_dataset(root: str | Path, required: Iterable[str] = REQUIRED,
-                 limits: Limits = Limits()) -> Dataset:
+                 limits: Limits = NOMINAL) -> Dataset:
     """Read ``root/dataset.yaml`` and every experiment it lists, validating all of them
     (values outside ``limits``, the nominal actuator's by default, are refused)."""
     root = Path(root)

@@ -23,7 +23,7 @@ import numpy as np
 from jetpipe_ros import fileio
 from jetpipe_ros.dataset import plausibility
 from jetpipe_ros.dataset.errors import DatasetError
-from jetpipe_ros.model.limits import Limits
+from jetpipe_ros.model.limits import NOMINAL, Limits
 
 REQUIRED = ("t", "u", "y", "p1", "p2")
 OPTIONAL = ("v", "f_load")
@@ -59,7 +59,7 @@ class Experiment:
 
 
 def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
-                    limits: Limits = Limits()) -> Experiment:
+                    limits: Limits = NOMINAL) -> Experiment:
     """Read and validate an experiment CSV; raise DatasetError naming file, line and column.
 
     Values outside ``limits`` (the nominal actuator's by default) are refused as physically

@@ -16,7 +16,7 @@ import numpy as np
 
 from jetpipe_ros.dataset.errors import DatasetError
 from jetpipe_ros.model.flow import P_ATM
-from jetpipe_ros.model.limits import Limits
+from jetpipe_ros.model.limits import NOMINAL, Limits
 
 #: Unit mistakes recognised per kind of column: (unit, factor to SI).
 PRESSURE_UNITS = (("bar", 1e5), ("kPa", 1e3), ("MPa", 1e6), ("psi", 6894.757),
@@ -27,7 +27,7 @@ VOLTAGE_UNITS = (("mV", 1e-3),)
 TIME_UNITS = (("ms", 1e-3), ("us", 1e-6))
 
 
-def check(path: Path, cols: Mapping[str, np.ndarray], limits: Limits = Limits(),
+def check(path: Path, cols: Mapping[str, np.ndarray], limits: Limits = NOMINAL,
           lines: np.ndarray | None = None) -> None:
     """Raise DatasetError if a column of ``cols`` (read from ``path``) is physically
     impossible. ``lines`` gives each row's line number in the file (for the message)."""

@@ -12,11 +12,8 @@ directory and moved into place only when all three are complete.
 
 from __future__ import annotations
 
-import json
 import os
-import shutil
 import sys
-import tempfile
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -342,11 +339,3 @@ def _write_outputs(out_dir: Path, result: dict, augmented: ModelParams, prepared
              "augmented.yaml": header + augmented.to_ros_yaml(only_changed=True),
              "report.html": render(result, prepared, preds)}
     fileio.write_files({out_dir / name: texts[name] for name in OUTPUTS})  # all or none
-
-
-def _json(x):
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    raise TypeError(f"not JSON serialisable: {type(x).__name__}")

@@ -50,3 +50,7 @@ class Limits:
         """The limits of an actuator with parameters ``params`` (stroke, piston area)."""
         return cls(position=params["mechanics.stroke"] / 2 + POSITION_MARGIN,
                    load=load_limit(params))
+
+
+#: The nominal actuator's limits (DESIGN.md s.2).
+NOMINAL = Limits()

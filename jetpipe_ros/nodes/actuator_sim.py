@@ -24,8 +24,9 @@ recording pairs each measurement with the inputs that produced it whatever the t
 Bad inputs never stop it: a non-finite command or load is ignored (the last one held), a command
 beyond ``valve.command_limit`` and a load beyond 4 x the largest pneumatic force S (p_s - p_atm)
 (:func:`jetpipe_ros.model.limits.load_limit`, 19.6 kN nominal) are clipped, each with a
-throttled warning. Messages are applied in the order they arrive (the default EventsExecutor), so a commander that
-publishes a sample's ``load_force`` before its ``voltage_cmd`` gets both on that sample.
+throttled warning. Messages are applied in the order they arrive (the default EventsExecutor),
+so a commander that publishes a sample's ``load_force`` before its ``voltage_cmd`` gets both on
+that sample.
 
 Model parameters may be changed at run time (``ros2 param set``, or a test rig's switch such as
 ``mechanics.locked``): the model is rebuilt with the new values and keeps its state.
@@ -283,7 +284,8 @@ class ActuatorSim(Node):
         if abs(f) > self._load_limit:
             self.get_logger().warning(
                 f"load_force {f:g} N beyond {self._load_limit:g} N ({LOAD_FACTOR:g} x the "
-                f"largest pneumatic force S (p_s - p_atm)); clipped", throttle_duration_sec=WARN_PERIOD)
+                f"largest pneumatic force S (p_s - p_atm)); clipped",
+                throttle_duration_sec=WARN_PERIOD)
             f = math.copysign(self._load_limit, f)
         self._f_load = f
 

@@ -29,8 +29,9 @@ kept fraction.
 
 A peer that dies is detected: in a campaign, no new sample for ``peer_timeout`` seconds (wall
 clock) while the simulator still re-publishes its waiting sample means the controller (in a
-closed-loop phase) stopped answering; nothing at all from the simulator means it stopped. In
-record mode, nothing received for ``peer_timeout`` after the stream began means it stopped.
+closed-loop phase) stopped answering; no ``joint_states`` at all means the simulator stopped.
+In record mode, no ``joint_states`` for ``peer_timeout`` after the stream began means it
+stopped.
 The recorder then logs which peer, marks the running experiment incomplete, closes the bag and
 exits with status 1. A campaign that never started (simulator or controller not found, or
 stopped before) leaves no bag behind, nor does a recording that received nothing.
@@ -81,8 +82,8 @@ NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
     ParamSpec("wait_timeout", 30.0, "Longest wait for the simulator and controller", "s",
               0.1, 600.0),
     ParamSpec("peer_timeout", 5.0, "A running campaign stops (status 1, experiment marked "
-              "incomplete) after this long without a new sample; record mode, without any "
-              "message once the stream began (more than the simulator's lockstep_kick)", "s",
+              "incomplete) after this long without a new sample; record mode, without "
+              "joint_states once the stream began (more than the simulator's lockstep_kick)", "s",
               0.5, 3600.0),
     ParamSpec("sample_time", 0.001, "Period of the stamped streams (gap counting)", "s",
               1e-5, 1.0),
@@ -138,7 +139,7 @@ class Recorder(Node):
         self._last: dict[str, int] = {}  # latest stamp per stamped topic
         self._first: dict[str, int] = {}
         self.dropped: dict[str, int] = {}
-        self.heard: float | None = None  # wall time [s] of the latest stamped message
+        self.heard: float | None = None  # wall time [s] of the latest joint_states message
         self.progressed = time.monotonic()  # wall time [s] of the latest new sample
         self.failure: str | None = None  # why the recording stopped early (a peer died)
         depth = QoSProfile(depth=self.opts["queue_depth"], history=HistoryPolicy.KEEP_LAST,
@@ -187,8 +188,9 @@ class Recorder(Node):
         def callback(data: bytes) -> None:
             if self.bag.closed:
                 return
-            self.heard = time.monotonic()
             stamp = stamp_of(data)
+            if is_joint_states:  # the simulator's own (/clock may come from anyone)
+                self.heard = time.monotonic()
             last = self._last.get(name)
             if last is not None and stamp <= last:  # re-published while the sim waits
                 if is_joint_states and self.driving:
@@ -236,6 +238,7 @@ class Recorder(Node):
                     what = (f"simulator {sim} did not complete a rig switch (parameter "
                             f"change) within {timeout:g} s")
                 elif phase.command.closed_loop:
+                    self._paced = False  # nobody left to give its pace back to
                     what = (f"controller {self.opts['controller_node']} stopped answering: "
                             f"the simulator waits for its voltage_cmd, no new sample for "
                             f"{timeout:g} s (killed or hung?)")
@@ -244,8 +247,8 @@ class Recorder(Node):
                             f"sample for {timeout:g} s")
                 self._fail(what)
         elif self.campaign is None and self.heard is not None and now - self.heard > timeout:
-            self._fail(f"the stream stopped: nothing on {js} or the other stamped topics for "
-                       f"{timeout:g} s (simulator {sim} killed or hung?)")
+            self._fail(f"the stream stopped: nothing on {js} for {timeout:g} s (simulator "
+                       f"{sim} killed or hung?)")
 
     def _fail(self, why: str) -> None:
         """A peer died: record why and end the run (the caller closes the bag)."""
