@@ -9,17 +9,20 @@ every message written before.
 A writer that is never closed (its process killed with SIGKILL, the machine losing power)
 leaves a bag without ``metadata.yaml`` and an MCAP file without summary or footer, which
 :mod:`jetpipe_ros.bag.recover` still reads up to the last complete chunk. So that this loses
-little, the writer syncs (:meth:`BagWriter.sync`: the pending chunk closed, written and
-``fsync``-ed) whenever :data:`SYNC_PERIOD` has passed since the last sync, at the first
+little, the writer syncs (:meth:`BagWriter.sync`: the pending chunk closed and written to the
+file) whenever :data:`SYNC_PERIOD` has passed since the last sync, at the first
 :meth:`~BagWriter.write` after it or when its owner calls :meth:`~BagWriter.sync_if_due`: a
-recording killed at any moment keeps every message written more than :data:`SYNC_PERIOD`
-before the kill (plus the time the owner takes to call it while idle).
+process killed at any moment keeps every message written more than :data:`SYNC_PERIOD` before
+the kill (plus the time the owner takes to call it while idle). Each sync is also ``fsync``-ed,
+by a background thread, so that a lock-step recording never waits on the disk; that covers a
+power cut too, once the disk has answered.
 """
 
 from __future__ import annotations
 
 import os
 import shutil
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -59,6 +62,8 @@ class BagWriter:
         self._connections: dict[str, Any] = {}
         self.counts: dict[str, int] = {}
         self.closed = True
+        self._fsyncer: threading.Thread | None = None
+        self._fsync_due = threading.Event()
         try:
             self._writer = Writer(self.path, version=METADATA_VERSION,
                                   storage_plugin=StoragePlugin.MCAP)
@@ -73,6 +78,9 @@ class BagWriter:
             os.chmod(self._storage.path, FILE_MODE)
             _fsync(self.path)
             _fsync(self.path.parent)
+            self._fsyncer = threading.Thread(target=self._fsync_loop, name="bag-fsync",
+                                             daemon=True)
+            self._fsyncer.start()
         except BaseException:
             self.discard()
             raise
@@ -101,8 +109,21 @@ class BagWriter:
         if self._storage.chunk.msgs:
             self._storage.close_chunk()
         self._storage.bio.flush()
-        os.fsync(self._storage.bio.fileno())
+        self._fsync_due.set()
         self.syncs += 1
+
+    def _fsync_loop(self) -> None:
+        """Background thread: fsync the MCAP file after each sync (until closed)."""
+        fd = self._storage.bio.fileno()
+        while True:
+            self._fsync_due.wait()
+            self._fsync_due.clear()
+            if self.closed:
+                return
+            try:
+                os.fsync(fd)
+            except OSError:  # closed under it: close() fsyncs itself
+                return
 
     def event(self, stamp_ns: int, **fields: Any) -> None:
         """Append a campaign event (JSON in a std_msgs/String) on :data:`EVENTS_TOPIC`."""
@@ -113,18 +134,24 @@ class BagWriter:
     def close(self) -> None:
         """Finish the MCAP file and write metadata.yaml (idempotent)."""
         if not self.closed:
-            self.closed = True
+            self._stop_fsyncer()
             self._writer.close()
             for item in self.path.iterdir():  # the MCAP file's tail, metadata.yaml
                 os.chmod(item, FILE_MODE)
                 _fsync(item)
             _fsync(self.path)
 
+    def _stop_fsyncer(self) -> None:
+        self.closed = True
+        self._fsync_due.set()
+        if self._fsyncer is not None:
+            self._fsyncer.join()
+
     def discard(self) -> None:
         """Close and delete the bag, and the parent directories this writer made (if empty):
         for a recording that never started."""
         if not self.closed:
-            self.closed = True
+            self._stop_fsyncer()
             try:
                 self._writer.close()
             except Exception:  # noqa: BLE001 - it is deleted anyway

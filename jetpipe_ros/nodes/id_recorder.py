@@ -93,6 +93,9 @@ NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
               "messages", 10, 100000),
 ]}
 NS = 1_000_000_000
+#: A kick of the sample answered last is taken as a lost command only this long [s, wall]
+#: after the answer (the simulator kicks every lockstep_kick, 0.2 s by default).
+KICK_GUARD = 0.1
 #: Message types whose CDR payload starts with a time stamp (header.stamp or clock).
 STAMPED = ("sensor_msgs/msg/FluidPressure", "sensor_msgs/msg/JointState",
            "rosgraph_msgs/msg/Clock")
@@ -157,6 +160,7 @@ class Recorder(Node):
         self._index = 0  # current phase
         self._start_ns: int | None = None  # stamp of the current phase's first sample
         self._answered = -1  # latest stamp answered [ns]
+        self._answered_at = 0.0  # when [s, monotonic]
         self._sent = -1  # highest row of the current phase whose command was sent
         self._held: int | None = None  # a sample waiting while the rig is switched
         self._busy = False  # a parameter change is in flight
@@ -339,10 +343,17 @@ class Recorder(Node):
     # -- the campaign -----------------------------------------------------------------------
 
     def _on_kick(self, stamp: int) -> None:
-        """The simulator re-published a sample: it is still waiting for its command."""
+        """The simulator re-published a sample: it is still waiting for its command.
+
+        A kick of the sample answered last that arrives within :data:`KICK_GUARD` of the answer
+        was sent before the answer reached the simulator (the recorder stalled longer than
+        the simulator's ``lockstep_kick`` and is catching up): answering it again would step
+        the simulator twice. If the answer really was lost, the next kick comes later.
+        """
         if stamp > self._answered:
             self._on_sample(stamp)
-        elif stamp == self._answered and not self._busy and self._start_ns is not None:
+        elif (stamp == self._answered and not self._busy and self._start_ns is not None
+              and time.monotonic() - self._answered_at >= KICK_GUARD):
             # The simulator lacks this sample's command (a race at a switch): send it again.
             self._sent = (stamp - self._start_ns) // self._dt_ns - 1
             self._answered = stamp - 1
@@ -383,6 +394,7 @@ class Recorder(Node):
                 self._publish("voltage_cmd", float(cmd.voltage[r]))
             self._sent = max(self._sent, last)
         self._answered = stamp
+        self._answered_at = time.monotonic()
 
     def _publish(self, name: str, v: float) -> None:
         self._msg.data = v
