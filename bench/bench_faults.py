@@ -2,9 +2,10 @@
 
 1. ``kill -9`` of id_recorder at random moments of the default campaign (three processes,
    lock-step): the bag (no metadata.yaml, no footer) is recovered by ``jetpipe export``; the
-   figure is how much of what the simulator had stepped before the kill is missing from the
-   recovered bag, in simulated samples and in wall time at the campaign's pace, and how many
-   of the experiments completed before the kill were exported.
+   figures are how much of what the simulator had stepped before the kill is missing from the
+   recovered bag (simulated samples), how long before the kill the last recovered sample was
+   published (wall clock, seen by a probe subscribing to ``joint_states`` in this process), and
+   how many experiments were exported (the one running at the kill is not).
 2. ``kill -9`` of actuator_sim, and of the controller during the closed-loop stick-slip
    experiment: the recorder's exit status and the wall time from the kill to its exit
    (``peer_timeout`` 5 s by default, plus closing the bag).
@@ -17,11 +18,13 @@ Processes run in ROS domain 150 (outside the 1-100 the tests use) with localhost
 from __future__ import annotations
 
 import argparse
+import os
 import random
 import re
 import signal
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -42,6 +45,45 @@ bench_campaign.ENV["ROS_DOMAIN_ID"] = "150"  # outside the tests' 1-100
 NS = 1_000_000_000
 
 
+class Arrivals:
+    """When [s, monotonic] each joint_states sample (by stamp) reached this process."""
+
+    def __init__(self) -> None:
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node as RosNode
+        from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+        from sensor_msgs.msg import JointState
+
+        os.environ.update(ROS_DOMAIN_ID=bench_campaign.ENV["ROS_DOMAIN_ID"],
+                          ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+        rclpy.init()
+        self.times: dict[int, float] = {}
+        self.node = RosNode("bench_faults_probe")
+        qos = QoSProfile(depth=10000, history=HistoryPolicy.KEEP_LAST,
+                         reliability=ReliabilityPolicy.RELIABLE)
+        self.node.create_subscription(JointState, "/joint_states", self._on, qos, raw=True)
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+        self._stop = threading.Event()
+        threading.Thread(target=self._spin, daemon=True).start()
+
+    def _on(self, data: bytes) -> None:
+        self.times.setdefault(stamp_of(data), time.monotonic())
+
+    def _spin(self) -> None:
+        while not self._stop.is_set():
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def close(self) -> None:
+        import rclpy
+
+        self._stop.set()
+        time.sleep(0.1)
+        self.node.destroy_node()
+        rclpy.try_shutdown()
+
+
 def rig() -> list[Node]:
     sim = Node("actuator_sim", "--params-file", str(REPO / "config/actuator.yaml"),
                "-p", "time_mode:=sim", "-p", "lockstep:=true", "-p", "report_period:=0.0")
@@ -56,8 +98,9 @@ def stop(nodes: list[Node]) -> None:
         node.stop()
 
 
-def kill_recorder(work: Path, after: float) -> dict[str, float]:
+def kill_recorder(work: Path, after: float, arrivals: Arrivals) -> dict[str, float]:
     """kill -9 the recorder ``after`` wall seconds into the campaign; what was recovered."""
+    arrivals.times.clear()
     nodes = rig()
     bag = work / f"killed_{after:.1f}"
     try:
@@ -80,6 +123,7 @@ def kill_recorder(work: Path, after: float) -> dict[str, float]:
     stamps = [stamp_of(raw) for topic, _, _, raw in stream_messages(mcap)
               if topic.endswith("/joint_states")]
     last = max(stamps) // 1_000_000 if stamps else 0
+    seen = arrivals.times.get(max(stamps)) if stamps else None
     notes: list[str] = []
     try:
         exported = len(export_bag(bag, work / f"data_{after:.1f}", progress=notes.append)
@@ -88,7 +132,8 @@ def kill_recorder(work: Path, after: float) -> dict[str, float]:
         exported, notes = 0, [str(exc)]
     speed = stepped / 1000.0 / (killed - start)  # simulated s per wall s
     return {"after": after, "stepped": stepped, "recovered": last + 1,
-            "lost_samples": stepped - (last + 1), "lost_wall": (stepped - last - 1) / 1000 / speed,
+            "lost_samples": stepped - (last + 1),
+            "lost_wall": killed - seen if seen is not None else float("nan"),
             "started": len(started), "exported": exported, "speed": speed}
 
 
@@ -131,20 +176,25 @@ def main() -> int:
     with tempfile.TemporaryDirectory(prefix="jetpipe-faults-") as tmp:
         work = Path(tmp)
         print("| kill -9 of id_recorder after [s wall] | stepped | recovered | lost [samples] "
-              "| lost [s wall] | experiments started / exported |")
+              "| last recovered sample, before the kill [s wall] | experiments started / "
+              "exported |")
         print("|---|---|---|---|---|---|", flush=True)
         kills = []
+        arrivals = Arrivals() if args.kills else None
         for _ in range(args.kills):
-            k = kill_recorder(work, rng.uniform(2.0, 25.0))
+            k = kill_recorder(work, rng.uniform(2.0, 25.0), arrivals)
             kills.append(k)
             print(f"| {k['after']:.1f} | {k['stepped']} | {k['recovered']} | "
                   f"{k['lost_samples']} | {k['lost_wall']:.2f} | {k['started']} / "
                   f"{k['exported']} |", flush=True)
+        if arrivals is not None:
+            arrivals.close()
         peers = {w: kill_peer(work, w) for w in ("simulator", "controller")}
         nosim = no_simulator(work)
     if kills:
         lost = np.array([k["lost_wall"] for k in kills])
-        print(f"\nlost wall time: median {np.median(lost):.2f} s, max {lost.max():.2f} s "
+        print(f"\nlast recovered sample before the kill: median {np.nanmedian(lost):.2f} s, "
+              f"max {np.nanmax(lost):.2f} s "
               f"(campaign pace {np.median([k['speed'] for k in kills]):.2f} x real time)")
     for which, p in peers.items():
         print(f"kill -9 of the {which}: recorder exit {p['status']} after {p['detected_s']:.1f}"
