@@ -161,6 +161,8 @@ class Recorder(Node):
         self._start_ns: int | None = None  # stamp of the current phase's first sample
         self._answered = -1  # latest stamp answered [ns]
         self._answered_at = 0.0  # when [s, monotonic]
+        self._kicks = 0  # kicks of the sample answered last since the answer
+        self.resent = 0  # answers sent again because the simulator still waited
         self._sent = -1  # highest row of the current phase whose command was sent
         self._held: int | None = None  # a sample waiting while the rig is switched
         self._busy = False  # a parameter change is in flight
@@ -289,7 +291,8 @@ class Recorder(Node):
         self.get_logger().info(
             f"recorded {kept} of {expected} joint_states samples (kept {100 * fraction:.3f} "
             f"%), dropped: {drops}; {sim:.2f} s simulated in {wall:.2f} s wall "
-            f"({sim / max(wall, 1e-9):.2f} x real time); bag {self.bag.path}")
+            f"({sim / max(wall, 1e-9):.2f} x real time); answers re-sent {self.resent}; bag "
+            f"{self.bag.path}")
 
     # -- start-up ---------------------------------------------------------------------------
 
@@ -345,15 +348,21 @@ class Recorder(Node):
     def _on_kick(self, stamp: int) -> None:
         """The simulator re-published a sample: it is still waiting for its command.
 
-        A kick of the sample answered last that arrives within :data:`KICK_GUARD` of the answer
-        was sent before the answer reached the simulator (the recorder stalled longer than
-        the simulator's ``lockstep_kick`` and is catching up): answering it again would step
-        the simulator twice. If the answer really was lost, the next kick comes later.
+        A kick of the sample answered last may have been sent before the answer reached the
+        simulator (a stall longer than the simulator's ``lockstep_kick``: of the recorder, which
+        then finds the kicks queued behind the sample it answers, or of a process hosting both,
+        whose kick timer fires once before the queued commands are taken): answering it again
+        would step the simulator twice. So the answer is sent again only at the second kick
+        after it and at least :data:`KICK_GUARD` after it; a lost answer costs two kick periods.
         """
         if stamp > self._answered:
             self._on_sample(stamp)
-        elif (stamp == self._answered and not self._busy and self._start_ns is not None
-              and time.monotonic() - self._answered_at >= KICK_GUARD):
+            return
+        if stamp == self._answered:
+            self._kicks += 1
+        if (stamp == self._answered and not self._busy and self._start_ns is not None
+                and self._kicks >= 2 and time.monotonic() - self._answered_at >= KICK_GUARD):
+            self.resent += 1
             # The simulator lacks this sample's command (a race at a switch): send it again.
             self._sent = (stamp - self._start_ns) // self._dt_ns - 1
             self._answered = stamp - 1
@@ -395,6 +404,7 @@ class Recorder(Node):
             self._sent = max(self._sent, last)
         self._answered = stamp
         self._answered_at = time.monotonic()
+        self._kicks = 0
 
     def _publish(self, name: str, v: float) -> None:
         self._msg.data = v
