@@ -282,12 +282,12 @@ def test_null_offset_moves_the_locked_equilibria_to_the_nulls_at_the_offset():
 
 def test_supply_similarity_and_pressure_dependent_gain():
     """q(u, p; p_s) = s q_8(u, p / s), s = p_s / 10 bar, times 1 + k (p - p_mid) / p_s."""
-    for u, p, ps, k in ((1.0, 5e5, 8e5, 0.0), (-2.0, 3e5, 7e5, 0.0), (2.0, 4e5, 1e6, 0.3),
+    for u, p, ps, slope in ((1.0, 5e5, 8e5, 0.0), (-2.0, 3e5, 7e5, 0.0), (2.0, 4e5, 1e6, 0.3),
                         (0.5, 6e5, 9e5, -0.4)):
         s = ps / 1e6
         expected = s * flow_polynomial(COEF, u, p / s * 1e-5) * \
-            (1 + k * (p - 0.5 * (ps + 1e5)) / ps)
-        assert valve_inflow(COEF, u, p, ps, 1.0, 1.0, k) == pytest.approx(expected, rel=1e-12)
+            (1 + slope * (p - 0.5 * (ps + 1e5)) / ps)
+        assert valve_inflow(COEF, u, p, ps, 1.0, 1.0, slope) == pytest.approx(expected, rel=1e-12)
 
 
 def test_pressure_dependent_gain_scales_the_pressure_rise():

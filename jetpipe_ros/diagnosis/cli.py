@@ -4,11 +4,15 @@ from __future__ import annotations
 
 import argparse
 
+from jetpipe_ros.arguments import positive_int
+
 
 def _diagnose(args: argparse.Namespace) -> int:
     from jetpipe_ros.diagnosis.diagnose import diagnose
+    from jetpipe_ros.fileio import output_dir
     from jetpipe_ros.model import ModelParams, load_params
 
+    output_dir(args.out, "--out")  # before the work
     params = load_params(args.params) if args.params else ModelParams()
     result = diagnose(args.dataset, args.out, params, workers=args.jobs, quiet=args.quiet)
     v, g = result["verdict"], result["gap"]
@@ -31,7 +35,9 @@ def _selfcheck(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from jetpipe_ros.diagnosis.selfcheck import run_selfcheck
+    from jetpipe_ros.fileio import output_dir
 
+    output_dir(args.out, "--out")  # before the work
     summary = run_selfcheck(args.cases, args.seed, out_dir=Path(args.out), workers=args.jobs,
                             deviate=args.deviations, source=args.truth)
     print(f"\n{summary['cases']} cases in {summary['seconds']:.0f} s: top-1 accuracy "
@@ -52,7 +58,8 @@ def add_command(subparsers) -> None:
     p.add_argument("dataset", metavar="DATASET_DIR", help="dataset directory (dataset.yaml)")
     p.add_argument("--out", required=True, metavar="OUT_DIR", help="output directory")
     p.add_argument("--params", help="nominal model parameter YAML (default: DESIGN.md s.2)")
-    p.add_argument("--jobs", type=int, default=2, help="parallel fitting processes (default 2)")
+    p.add_argument("--jobs", type=positive_int, default=2,
+                   help="parallel fitting processes (default 2)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=_diagnose)
     c = subparsers.add_parser(
@@ -61,10 +68,11 @@ def add_command(subparsers) -> None:
                     "effect in a form no candidate has) at a random realistic size, diagnose "
                     "each dataset blind, and print the confusion matrix, parameter recovery "
                     "and held-out shrinkage.")
-    c.add_argument("--cases", type=int, default=30, help="number of cases (default 30)")
+    c.add_argument("--cases", type=positive_int, default=30, help="number of cases (default 30)")
     c.add_argument("--seed", type=int, default=0, help="seed of sizes and noise (default 0)")
     c.add_argument("--out", default="out/selfcheck", help="where selfcheck.md/json go")
-    c.add_argument("--jobs", type=int, default=2, help="parallel fitting processes (default 2)")
+    c.add_argument("--jobs", type=positive_int, default=2,
+                   help="parallel fitting processes (default 2)")
     c.add_argument("--truth", choices=("plant", "model"), default="plant",
                    help="where the data come from: the plant written apart from the candidates "
                         "(default), or the simulator's own effects")

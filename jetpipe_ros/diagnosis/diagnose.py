@@ -17,11 +17,8 @@ complete.
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
-import shutil
 import sys
-import tempfile
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -481,26 +478,12 @@ def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
 
 def _write_outputs(out_dir: Path, result: dict, augmented: ModelParams, prepared: Prepared,
                    preds: dict) -> None:
+    from jetpipe_ros import fileio
     from jetpipe_ros.diagnosis.report import render
 
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
-    try:
-        (tmp / "diagnosis.json").write_text(json.dumps(result, indent=2, default=_json))
-        header = ("# jetpipe diagnose: the nominal model plus the effect the diagnosis "
-                  f"identified ({result['verdict']['effect']}).\n")
-        (tmp / "augmented.yaml").write_text(header + augmented.to_ros_yaml(only_changed=True))
-        (tmp / "report.html").write_text(render(result, prepared, preds))
-        out_dir.mkdir(parents=True, exist_ok=True)
-        for name in OUTPUTS:
-            os.replace(tmp / name, out_dir / name)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-
-
-def _json(x):
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    raise TypeError(f"not JSON serialisable: {type(x).__name__}")
+    header = ("# jetpipe diagnose: the nominal model plus the effect the diagnosis "
+              f"identified ({result['verdict']['effect']}).\n")
+    texts = {"diagnosis.json": fileio.to_json(result) + "\n",  # strict: NaN/inf as null
+             "augmented.yaml": header + augmented.to_ros_yaml(only_changed=True),
+             "report.html": render(result, prepared, preds)}
+    fileio.write_files({out_dir / name: texts[name] for name in OUTPUTS})  # all or none

@@ -27,7 +27,6 @@ held-out shrinkage.
 
 from __future__ import annotations
 
-import json
 import math
 import shutil
 import tempfile
@@ -328,9 +327,10 @@ def run_selfcheck(n: int, seed: int,
         shutil.rmtree(work, ignore_errors=True)
     summary = summarise(cases, time.perf_counter() - began)
     if out_dir is not None:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        (out_dir / "selfcheck.json").write_text(json.dumps(summary, indent=2))
-        (out_dir / "selfcheck.md").write_text(render(summary))
+        from jetpipe_ros import fileio
+
+        fileio.write_files({out_dir / "selfcheck.json": fileio.to_json(summary) + "\n",
+                            out_dir / "selfcheck.md": render(summary)})
     return summary
 
 

@@ -17,6 +17,7 @@ from typing import Any
 
 import yaml
 
+from jetpipe_ros.fileio import load_yaml
 from jetpipe_ros.model.chamber import chamber_volumes
 from jetpipe_ros.model.errors import ParameterError
 
@@ -402,7 +403,7 @@ def load_params(path: str | Path, node_name: str = NODE_NAME,
     """Read and validate a parameter YAML file; errors name the file and the parameter."""
     path = Path(path)
     try:
-        tree = yaml.safe_load(path.read_text())
+        tree = load_yaml(path)
     except OSError as exc:
         raise ParameterError(f"{path}: cannot read parameter file: {exc.strerror}") from exc
     except yaml.YAMLError as exc:
