@@ -41,6 +41,7 @@ from jetpipe_ros.diagnosis.score import METRIC, Score, predict_all, score, windo
 from jetpipe_ros.diagnosis.verdict import (Ranked, Settled, decide, needs_pairs,
                                            paired_t, rank, settle)
 from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError, simulate
+from jetpipe_ros.model.limits import Limits
 
 SCHEMA = "jetpipe.diagnosis/2"
 OUTPUTS = ("diagnosis.json", "report.html", "augmented.yaml")
@@ -256,7 +257,7 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
     if out_dir.exists() and not out_dir.is_dir():
         raise ParameterError(f"--out {out_dir}: exists and is not a directory")
     progress(f"reading {dataset_dir}")
-    dataset = read_dataset(dataset_dir)
+    dataset = read_dataset(dataset_dir, limits=Limits.from_params(nominal))
     prepared = prepare(dataset)
     dt = prepared.dt
     progress(f"{len(prepared.records)} experiments, {prepared.seconds('train'):.1f} s train, "
