@@ -459,3 +459,21 @@ def test_campaign_dataset_writes_the_default_campaign(tmp_path):
     ds = read_dataset(root)
     names = [e.file for e, _ in ds]
     assert names == [f"{e.name}.csv" for e in default_campaign().experiments]
+
+
+def test_bristles_do_not_load_up_against_an_end_stop():
+    """Pushed against its stop with 450 N, then driven back: the bristles deflect only by what
+    the piston moved, so it leaves the stop as the model's LuGre does (not sprung back by a
+    deflection of F / sigma_0 = 12 mm that the stop kept from happening)."""
+    from jetpipe_ros.model import simulate as simulate_model
+
+    u = np.concatenate([np.zeros(200), np.linspace(0.0, 0.25, 3000), np.full(2000, 0.25),
+                        np.full(3000, -0.25)])
+    lugre = simulate_model(ModelParams().with_effect("friction_dynamics",
+                                                     bristle_stiffness=3.7e4,
+                                                     bristle_damping=81.0), u)
+    ep = simulate(PlantSpec().with_effect("elastoplastic_friction", bristle_stiffness=3.7e4,
+                                          bristle_damping=81.0, damping_velocity=1.3e-3,
+                                          breakaway_fraction=0.86), u)
+    assert np.max(np.abs(lugre.y)) == pytest.approx(0.025)  # it reached the stop
+    assert np.max(np.abs(ep.y - lugre.y)) < 1e-4
