@@ -202,6 +202,10 @@ _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
     "sensor_dynamics": [
         _p("time_constant", 0.005, "Pressure sensor first-order lag", "s", 0.0, 1.0),
         _p("bias", 0.0, "Pressure sensor bias", "Pa", -1e5, 1e5),
+        _p("bias_difference", 0.0, "Chamber 2's pressure sensor bias beyond chamber 1's", "Pa",
+           -1e5, 1e5),
+        _p("gain", 0.0, "Relative gain error of the pressure sensors: they read (1 + gain) p",
+           "", -0.2, 0.2),
         _p("drift", 0.0, "Pressure sensor drift rate", "Pa/s", -1e4, 1e4),
     ],
 }
