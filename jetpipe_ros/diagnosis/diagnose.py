@@ -315,7 +315,8 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
     errors = uncertainty(prepared, nominal, final) if final is not None else {}
     progress("equation errors of the augmented model, against its noise twin")
     stroke = nominal["mechanics.stroke"]
-    equations = residuals.locate(prepared, twin(prepared, augmented), augmented, stroke)
+    equations, remainders = residuals.locate(prepared, twin(prepared, augmented), augmented,
+                                             stroke)
     aug_all = predict_all(augmented, prepared, None) if final is not None else nom_all
     aug_hold = score(prepared, aug_all, "holdout")
     preds = {"nominal": nom_all, "augmented": aug_all}
@@ -339,7 +340,7 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
     result = _result(prepared, nominal, settled, ranking, alone_ranking, cal, cal_row, nom_hold,
                      aug_hold, localization, seen, separating, preds, errors)
     progress(f"writing {out_dir}")
-    _write_outputs(out_dir, result, augmented, prepared, preds)
+    _write_outputs(out_dir, result, augmented, prepared, preds, remainders)
     progress(f"verdict: {result['verdict']['effect']} "
              f"(confidence {result['verdict']['confidence']:.2f}); "
              f"{result['verdict']['reason']}")
@@ -478,7 +479,7 @@ def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
 
 
 def _write_outputs(out_dir: Path, result: dict, augmented: ModelParams, prepared: Prepared,
-                   preds: dict) -> None:
+                   preds: dict, remainders: dict) -> None:
     from jetpipe_ros import fileio
     from jetpipe_ros.diagnosis.report import render
 
@@ -486,5 +487,5 @@ def _write_outputs(out_dir: Path, result: dict, augmented: ModelParams, prepared
               f"identified ({result['verdict']['effect']}).\n")
     texts = {"diagnosis.json": fileio.to_json(result) + "\n",  # strict: NaN/inf as null
              "augmented.yaml": header + augmented.to_ros_yaml(only_changed=True),
-             "report.html": render(result, prepared, preds)}
+             "report.html": render(result, prepared, preds, remainders)}
     fileio.write_files({out_dir / name: texts[name] for name in OUTPUTS})  # all or none

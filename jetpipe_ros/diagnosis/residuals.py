@@ -323,17 +323,20 @@ def worst_regime(err: EquationError) -> tuple[str, float] | None:
     return best
 
 
-def locate(data: Prepared, twin: Prepared, params: ModelParams, stroke: float) -> dict:
+def locate(data: Prepared, twin: Prepared, params: ModelParams,
+           stroke: float) -> tuple[dict, dict[str, EquationError]]:
     """Where the model's equations leave a gap beyond noise that no recalibration explains,
     and what shape it has: each equation's error less its calibration-shaped part, against the
-    same on the noise twin."""
+    same on the noise twin. Returns the findings (JSON) and those remainders by equation."""
     errors = {e.equation: e for e in equation_errors(data, params, stroke)}
     noise = {e.equation: without_calibration(e).rms
              for e in equation_errors(twin, params, stroke)}
     out: dict = {"equations": {}, "beyond_noise": BEYOND_NOISE}
+    remainders = {}
     for name, full in errors.items():
         e = without_calibration(full)
         e.noise_rms = noise.get(name, 0.0)
+        remainders[name] = e
         reg = worst_regime(e)
         out["equations"][name] = {
             "unit": e.unit, "rms": full.rms, "rms_beyond_calibration": e.rms,
@@ -349,7 +352,7 @@ def locate(data: Prepared, twin: Prepared, params: ModelParams, stroke: float) -
                           "regime": info["worst_regime"]}
     else:
         out["missing"] = None
-    return out
+    return out, remainders
 
 
 def describe(located: dict) -> str:
