@@ -3,6 +3,9 @@
 Each sub-command lives with the tool it runs: a module listed in :data:`COMMANDS` defines
 ``add_command(subparsers)``, which adds its parser and sets ``func`` to a function taking the
 parsed arguments and returning the exit status. Heavy imports belong inside that function.
+Bad input and file-system errors (a path that cannot be read or written) end the command with
+one line naming the file and the reason, and exit status 2; commands check their output paths
+before the work and write atomically (:mod:`jetpipe_ros.fileio`), so nothing is half-written.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import sys
 from collections.abc import Sequence
 
 from jetpipe_ros.dataset import DatasetError
+from jetpipe_ros.fileio import FileError
 from jetpipe_ros.model import ParameterError
 
 #: Modules that contribute a sub-command, in the order ``jetpipe --help`` lists them.
@@ -39,8 +43,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except (ParameterError, DatasetError) as exc:
+    except (ParameterError, DatasetError, FileError) as exc:
         print(f"jetpipe {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # any other file-system error: the path and the reason
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"jetpipe {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"jetpipe {args.command}: interrupted", file=sys.stderr)

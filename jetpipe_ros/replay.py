@@ -41,8 +41,10 @@ def replay_csv(params: ModelParams, input_csv: str | Path, out_csv: str | Path,
 
 
 def _run(args) -> int:
+    from jetpipe_ros.fileio import output_file
     from jetpipe_ros.model import load_params
 
+    output_file(args.out, "--out")  # before the work: a writable file, not a directory
     params = load_params(args.params) if args.params else ModelParams()
     trace = replay_csv(params, args.input, args.out, locked=args.locked)
     effects = ", ".join(params.enabled_effects()) or "none"

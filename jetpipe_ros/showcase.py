@@ -20,6 +20,7 @@ in the namespace ``/showcase``; every process started here is stopped on exit.
 from __future__ import annotations
 
 import argparse
+import io
 import os
 import shutil
 import subprocess
@@ -34,6 +35,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import signal  # noqa: E402
 
+from jetpipe_ros import fileio  # noqa: E402
 from jetpipe_ros.bag import export_bag  # noqa: E402
 from jetpipe_ros.dataset import Dataset, read_dataset  # noqa: E402
 from jetpipe_ros.model import ModelParams, simulate  # noqa: E402
@@ -124,7 +126,8 @@ def start_standin(nodes: Nodes, out: Path) -> ModelParams:
         {"sensors.noise": True, "sensors.seed": 1})
     params_file = out / "standin.yaml"
     # "/**/" so that the file applies to the node in the showcase namespace.
-    params_file.write_text(standin.to_ros_yaml(node_name="/**/actuator_sim", only_changed=True))
+    fileio.write_text(params_file,
+                      standin.to_ros_yaml(node_name="/**/actuator_sim", only_changed=True))
     nodes.start("actuator_sim", ["--params-file", str(share_file("config/actuator.yaml")),
                                  "--params-file", str(params_file), "-p", "time_mode:=sim",
                                  "-p", "lockstep:=true", "-p", "report_period:=0.0"])
@@ -177,7 +180,9 @@ def plot_square_waves(data: Dataset, out: Path) -> Path:
         ax.set_ylabel("y [mm]")
         ax.legend(loc="upper right")
     plot = out / "showcase.png"
-    figure.savefig(plot, dpi=110)
+    image = io.BytesIO()
+    figure.savefig(image, format="png", dpi=110)
+    fileio.write_files({plot: image.getvalue()})
     return plot
 
 
@@ -201,7 +206,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="out/showcase", help="output directory")
     args = parser.parse_args(argv)
-    out = Path(args.out).resolve()
+    try:
+        out = fileio.output_dir(args.out, "--out").resolve()
+    except fileio.FileError as exc:
+        print(f"showcase: error: {exc}", file=sys.stderr)
+        return 2
     for stale in ("bag", "dataset", "logs", "diagnosis"):  # a previous run's results
         shutil.rmtree(out / stale, ignore_errors=True)
     out.mkdir(parents=True, exist_ok=True)

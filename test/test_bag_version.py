@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 import yaml
 from rosbags.rosbag2 import Reader
@@ -67,7 +68,15 @@ def test_recorder_takes_bag_version_8_and_refuses_others(ros_context, tmp_path):
     rec = Recorder(context=ros_context, cli_args=[
         "--ros-args", "-p", "mode:=record", "-p", f"bag:={tmp_path / 'bag'}",
         "-p", "bag_version:=8"])
-    try:
+    store = get_typestore(Stores.ROS2_KILTED)
+    Time = store.types["builtin_interfaces/msg/Time"]
+    header = store.types["std_msgs/msg/Header"](stamp=Time(sec=1, nanosec=0), frame_id="")
+    sample = store.types["sensor_msgs/msg/JointState"](
+        header=header, name=["piston"], position=np.array([0.01]), velocity=np.array([0.0]),
+        effort=np.array([0.0]))
+    try:  # one sample as if heard: a recording that received nothing leaves no bag
+        rec._stamped(rec._names["joint_states"])(
+            bytes(store.serialize_cdr(sample, "sensor_msgs/msg/JointState")))
         rec.close()
     finally:
         rec.destroy_node()

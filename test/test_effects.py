@@ -184,6 +184,28 @@ def test_sensor_dynamics_lag_bias_and_drift():
         assert np.max(np.abs(measured - (lagged + bias + drift * trace.t))) < 150.0
 
 
+def test_sensor_gain_error_and_per_chamber_bias():
+    """Without lag the sensors read (1 + gain) p + bias, chamber 2 plus bias_difference."""
+    u = np.full(1500, -1.0)
+    params = LOCKED.with_effect("sensor_dynamics", time_constant=0.0, bias=1500.0,
+                                bias_difference=-4000.0, gain=0.02)
+    trace = simulate(params, u)
+    assert np.allclose(trace.p1_meas, 1.02 * trace.p1 + 1500.0, rtol=0, atol=1e-6)
+    assert np.allclose(trace.p2_meas, 1.02 * trace.p2 + 1500.0 - 4000.0, rtol=0, atol=1e-6)
+
+
+def test_a_delay_between_sub_steps_is_interpolated():
+    """The delay is continuous: 1.1 ms (4.4 sub-steps of 0.25 ms) lies between 1 and 1.25 ms,
+    in proportion, at every sample of a step response."""
+    u = np.concatenate([np.zeros(20), np.full(60, 2.0)])
+    runs = {d: simulate(LOCKED.with_effect("valve_delay", delay=d), u).p1
+            for d in (0.001, 0.0011, 0.00125)}
+    low, mid, high = runs[0.001], runs[0.0011], runs[0.00125]
+    assert np.max(np.abs(high - low)) > 300.0  # a quarter of a millisecond shows
+    expected = low + 0.4 * (high - low)
+    assert np.max(np.abs(mid - expected)) < 0.02 * np.max(np.abs(high - low))
+
+
 @pytest.mark.parametrize("force", [2.0, 25.0, 40.0])
 def test_lugre_follows_its_equations(force):
     """Regulated rig at (5, 4) bar (exit planes: F_S 30.7 N), a net force ``force`` [N] from

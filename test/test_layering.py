@@ -10,7 +10,10 @@ PACKAGE = Path(__file__).resolve().parent.parent / "jetpipe_ros"
 
 #: Lowest first. A module may import its own subpackage and anything in a lower layer.
 LAYERS = (
-    ("model", "dataset", "package_data"),  # physics; data I/O; where the data files are
+    # atomic writes and strict JSON/YAML; where the data files are; CLI argument types
+    ("fileio", "package_data", "arguments"),
+    ("model",),  # the physics
+    ("dataset",),  # data I/O, checked against the model's limits
     ("control",),  # the PID law
     ("campaign", "replay"),  # plans, signals, offline runner; replaying a CSV
     ("plant",),  # a stand-in for real hardware written apart from the model's effects

@@ -229,8 +229,9 @@ def test_record_mode_keeps_a_real_time_stream(launch, tmp_path):
 
 
 def test_export_refuses_a_directory_without_metadata(tmp_path):
+    (tmp_path / "empty").mkdir()
     with pytest.raises(BagError, match="not a rosbag2 bag"):
-        export_bag(tmp_path, tmp_path / "out")
+        export_bag(tmp_path / "empty", tmp_path / "out")
 
 
 def test_export_refuses_an_unreadable_bag(tmp_path):

@@ -282,12 +282,12 @@ def test_null_offset_moves_the_locked_equilibria_to_the_nulls_at_the_offset():
 
 def test_supply_similarity_and_pressure_dependent_gain():
     """q(u, p; p_s) = s q_8(u, p / s), s = p_s / 10 bar, times 1 + k (p - p_mid) / p_s."""
-    for u, p, ps, k in ((1.0, 5e5, 8e5, 0.0), (-2.0, 3e5, 7e5, 0.0), (2.0, 4e5, 1e6, 0.3),
+    for u, p, ps, slope in ((1.0, 5e5, 8e5, 0.0), (-2.0, 3e5, 7e5, 0.0), (2.0, 4e5, 1e6, 0.3),
                         (0.5, 6e5, 9e5, -0.4)):
         s = ps / 1e6
         expected = s * flow_polynomial(COEF, u, p / s * 1e-5) * \
-            (1 + k * (p - 0.5 * (ps + 1e5)) / ps)
-        assert valve_inflow(COEF, u, p, ps, 1.0, 1.0, k) == pytest.approx(expected, rel=1e-12)
+            (1 + slope * (p - 0.5 * (ps + 1e5)) / ps)
+        assert valve_inflow(COEF, u, p, ps, 1.0, 1.0, slope) == pytest.approx(expected, rel=1e-12)
 
 
 def test_pressure_dependent_gain_scales_the_pressure_rise():
@@ -459,3 +459,21 @@ def test_campaign_dataset_writes_the_default_campaign(tmp_path):
     ds = read_dataset(root)
     names = [e.file for e, _ in ds]
     assert names == [f"{e.name}.csv" for e in default_campaign().experiments]
+
+
+def test_bristles_do_not_load_up_against_an_end_stop():
+    """Pushed against its stop with 450 N, then driven back: the bristles deflect only by what
+    the piston moved, so it leaves the stop as the model's LuGre does (not sprung back by a
+    deflection of F / sigma_0 = 12 mm that the stop kept from happening)."""
+    from jetpipe_ros.model import simulate as simulate_model
+
+    u = np.concatenate([np.zeros(200), np.linspace(0.0, 0.25, 3000), np.full(2000, 0.25),
+                        np.full(3000, -0.25)])
+    lugre = simulate_model(ModelParams().with_effect("friction_dynamics",
+                                                     bristle_stiffness=3.7e4,
+                                                     bristle_damping=81.0), u)
+    ep = simulate(PlantSpec().with_effect("elastoplastic_friction", bristle_stiffness=3.7e4,
+                                          bristle_damping=81.0, damping_velocity=1.3e-3,
+                                          breakaway_fraction=0.86), u)
+    assert np.max(np.abs(lugre.y)) == pytest.approx(0.025)  # it reached the stop
+    assert np.max(np.abs(ep.y - lugre.y)) < 1e-4

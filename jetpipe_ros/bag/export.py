@@ -9,21 +9,31 @@ row k follows the convention of :func:`jetpipe_ros.model.simulate`. Regulated fr
 marked ``regulated: true`` in ``dataset.yaml``, as ``jetpipe identify`` reads them. A few
 samples lost in transport are interpolated and counted; more than :data:`MAX_MISSING` of an
 experiment is an error.
+
+A bag that was never closed (its recorder killed: no ``metadata.yaml``, or an MCAP file without
+footer) is read from its MCAP stream (:mod:`jetpipe_ros.bag.recover`), and the export says so:
+the experiments whose end the recorder marked before it died are exported as usual.
+
+The dataset directory is checked before the bag is read: it must be new or empty, or, with
+``overwrite``, a dataset directory written before (never the bag, a directory holding it, or
+the current directory; :func:`jetpipe_ros.dataset.dataset.check_target`).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
 from rosbags.rosbag2 import Reader, ReaderError
 from rosbags.typesys import get_typestore
 
+from jetpipe_ros.bag.recover import StreamReport, stream_messages
 from jetpipe_ros.bag.writer import EVENTS_TOPIC, TYPESTORE
 from jetpipe_ros.dataset import DatasetError, Entry, write_dataset
+from jetpipe_ros.dataset.dataset import check_target
 
 MAX_MISSING = 0.01  #: largest fraction of an experiment's samples that may be interpolated
 #: Stamped topics read, by the suffix their (possibly namespaced) name ends with.
@@ -42,48 +52,100 @@ def _find(bag: Path, names: list[str], suffix: str) -> str:
     return hits[0]
 
 
-def read_signals(bag: str | Path) -> tuple[dict[str, dict[str, np.ndarray]], list[dict]]:
+def read_signals(bag: str | Path, progress: Callable[[str], None] = print
+                 ) -> tuple[dict[str, dict[str, np.ndarray]], list[dict]]:
     """The stamped signals of a bag and its campaign events.
 
     Returns ({suffix: {"t": stamps [ns], field: values}}, events): for ``joint_states``
     the fields y [m] and v [m/s], for the pressures p [Pa], for ``voltage_applied`` u [V] and
     f_load [N] (NaN if the bag's simulator did not report it);
     duplicate stamps (a lock-step simulator re-publishing while it waits) are dropped.
+    A bag that was not closed is read from its MCAP stream, saying so through ``progress``.
     """
     bag = Path(bag)
+    if not bag.is_dir():
+        raise BagError(f"{bag}: not a rosbag2 bag (no such directory)")
+    mcaps = sorted(bag.glob("*.mcap"))
     if not (bag / "metadata.yaml").is_file():
-        raise BagError(f"{bag}: not a rosbag2 bag (no metadata.yaml)")
-    store = get_typestore(TYPESTORE)
+        if not mcaps:
+            raise BagError(f"{bag}: not a rosbag2 bag (no metadata.yaml, no .mcap file)")
+        progress(f"{bag}: no metadata.yaml: the recording was not closed (recorder killed?); "
+                 f"recovering it from the MCAP stream")
+        return _recovered(bag, mcaps, progress)
     try:
-        return _read(bag, store)
+        with Reader(bag) as reader:
+            names = [c.topic for c in reader.connections]
+            wanted = [c for c in reader.connections
+                      if _suffix(c.topic) or c.topic == EVENTS_TOPIC]
+            _topics(bag, names)  # before reading
+            messages = ((c.topic, c.msgtype, raw)
+                        for c, _, raw in reader.messages(connections=wanted))
+            return _decode(bag, names, messages)
     except ReaderError as exc:
-        raise BagError(f"{bag}: unreadable bag: {exc}") from None
+        if not mcaps:
+            raise BagError(f"{bag}: unreadable bag: {exc}") from None
+        progress(f"{bag}: unreadable as a closed bag ({exc}); recovering it from the MCAP "
+                 f"stream")
+        return _recovered(bag, mcaps, progress)
 
 
-def _read(bag: Path, store) -> tuple[dict[str, dict[str, np.ndarray]], list[dict]]:
-    with Reader(bag) as reader:
-        names = [c.topic for c in reader.connections]
-        topics = {_find(bag, names, s): s for s in SIGNALS}
-        if EVENTS_TOPIC not in names:
-            raise BagError(f"{bag}: no {EVENTS_TOPIC} topic: not recorded by id_recorder "
-                           f"running a campaign")
-        rows: dict[str, list[tuple[float, ...]]] = {s: [] for s in SIGNALS}
-        events = []
-        wanted = [c for c in reader.connections if c.topic in topics or c.topic == EVENTS_TOPIC]
-        for conn, _, raw in reader.messages(connections=wanted):
-            msg = store.deserialize_cdr(raw, conn.msgtype)
-            if conn.topic == EVENTS_TOPIC:
-                events.append(json.loads(msg.data))
-                continue
-            suffix = topics[conn.topic]
-            stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-            if suffix == "joint_states":
-                rows[suffix].append((stamp, msg.position[0], msg.velocity[0]))
-            elif suffix == "voltage_applied":
-                load = msg.effort[1] if len(msg.effort) > 1 else np.nan
-                rows[suffix].append((stamp, msg.position[0], load))
-            else:
-                rows[suffix].append((stamp, msg.fluid_pressure))
+def _recovered(bag: Path, mcaps: list[Path], progress: Callable[[str], None]
+               ) -> tuple[dict[str, dict[str, np.ndarray]], list[dict]]:
+    """Read a bag that was not closed from its MCAP files' record streams."""
+    names: list[str] = []  # the channels' topics, filled in while reading
+    reports = [StreamReport(m, topics=names) for m in mcaps]
+
+    def messages() -> Iterator[tuple[str, str, bytes]]:
+        for path, report in zip(mcaps, reports):
+            for topic, msgtype, _, raw in stream_messages(path, report):
+                if _suffix(topic) or topic == EVENTS_TOPIC:
+                    yield topic, msgtype, raw
+
+    signals, events = _decode(bag, names, messages())
+    for report in reports:
+        progress(f"recovered {report.describe()}")
+    return signals, events
+
+
+def _suffix(topic: str) -> str | None:
+    """The signal (one of :data:`SIGNALS`) whose name ``topic`` ends with, or None."""
+    return next((s for s in SIGNALS if topic == f"/{s}" or topic.endswith(f"/{s}")), None)
+
+
+def _topics(bag: Path, names: list[str]) -> dict[str, str]:
+    """{topic: signal suffix} of the bag's topics ``names``; BagError if one is missing or
+    ambiguous or there are no campaign events."""
+    topics = {_find(bag, names, s): s for s in SIGNALS}
+    if EVENTS_TOPIC not in names:
+        raise BagError(f"{bag}: no {EVENTS_TOPIC} topic: not recorded by id_recorder "
+                       f"running a campaign")
+    return topics
+
+
+def _decode(bag: Path, names: list[str], messages: Iterator[tuple[str, str, bytes]]
+            ) -> tuple[dict[str, dict[str, np.ndarray]], list[dict]]:
+    """Signals and events from (topic, type, CDR) messages; ``names``: every topic of the bag
+    (complete once ``messages`` is exhausted: a recovered bag's are found while reading)."""
+    store = get_typestore(TYPESTORE)
+    by_topic: dict[str, list[tuple[float, ...]]] = {}
+    events = []
+    for topic, msgtype, raw in messages:
+        msg = store.deserialize_cdr(raw, msgtype)
+        if topic == EVENTS_TOPIC:
+            events.append(json.loads(msg.data))
+            continue
+        suffix = _suffix(topic)
+        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        if suffix == "joint_states":
+            row: tuple[float, ...] = (stamp, msg.position[0], msg.velocity[0])
+        elif suffix == "voltage_applied":
+            load = msg.effort[1] if len(msg.effort) > 1 else np.nan
+            row = (stamp, msg.position[0], load)
+        else:
+            row = (stamp, msg.fluid_pressure)
+        by_topic.setdefault(topic, []).append(row)
+    topics = _topics(bag, names)
+    rows = {s: by_topic.get(t, []) for t, s in topics.items()}
     fields = {"joint_states": ("y", "v"), "voltage_applied": ("u", "f_load"),
               "chamber1/pressure": ("p",), "chamber2/pressure": ("p",)}
     signals = {}
@@ -116,7 +178,8 @@ def export_bag(bag: str | Path, out_dir: str | Path, overwrite: bool = False,
     kind and the number of interpolated samples (``missing_samples``). Written atomically.
     """
     bag = Path(bag)
-    signals, events = read_signals(bag)
+    check_target(out_dir, overwrite, protect=[bag])
+    signals, events = read_signals(bag, progress)
     experiments = [e for e in events if e.get("event") == "experiment"]
     complete = [e for e in experiments if e.get("complete")]
     for e in experiments:
@@ -151,7 +214,7 @@ def export_bag(bag: str | Path, out_dir: str | Path, overwrite: bool = False,
                           load_force=float(e["load_force"]), role=e["role"], extra=extra),
                     cols))
         progress(f"{name}: {n} samples ({n * e['dt']:.1f} s), {missing} interpolated")
-    return write_dataset(out_dir, out, overwrite=overwrite)
+    return write_dataset(out_dir, out, overwrite=overwrite, protect=[bag])
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -166,7 +229,10 @@ def add_command(subparsers) -> None:
         "export", help="convert an id_recorder campaign bag into a dataset (DESIGN.md s.5)",
         description="Read a rosbag2 (MCAP) bag recorded by id_recorder and write one CSV per "
                     "complete experiment (t,u,y,p1,p2,v,f_load) and dataset.yaml.")
-    p.add_argument("bag", help="bag directory (holds metadata.yaml and the .mcap file)")
+    p.add_argument("bag", help="bag directory (holds metadata.yaml and the .mcap file; a bag "
+                               "whose recorder was killed is recovered from the .mcap file)")
     p.add_argument("dataset_dir", help="dataset directory to create")
-    p.add_argument("--overwrite", action="store_true", help="replace a non-empty dataset_dir")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace dataset_dir if it is a dataset written before (dataset.yaml "
+                        "and the files it lists only; never the bag or the current directory)")
     p.set_defaults(func=_run)

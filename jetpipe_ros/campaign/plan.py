@@ -61,6 +61,7 @@ import yaml
 
 from jetpipe_ros.campaign.errors import CampaignError
 from jetpipe_ros.campaign.signals import GENERATORS, samples
+from jetpipe_ros.fileio import load_yaml
 from jetpipe_ros.model.params import SPECS
 from jetpipe_ros.package_data import share_file
 
@@ -435,7 +436,7 @@ def load_campaign(path: str | Path) -> Campaign:
     """Read and validate a campaign YAML file (see the module docstring)."""
     path = Path(path)
     try:
-        doc = yaml.safe_load(path.read_text())
+        doc = load_yaml(path)
     except OSError as exc:
         raise CampaignError(f"{path}: cannot read: {exc.strerror}") from None
     except yaml.YAMLError as exc:

@@ -9,16 +9,16 @@
         role: train         # train | holdout, optional
 
 Reading validates the index (errors name the file, the entry and the field) and every CSV it
-lists. Writing builds the whole directory beside the target and renames it into place, so a
-failed write never leaves a half-written dataset behind.
+lists, including physical plausibility (:mod:`jetpipe_ros.dataset.plausibility`). Writing
+builds the whole directory beside the target and renames it into place, so a failed write never
+leaves a half-written dataset behind; it replaces an existing directory only if asked to and
+only if that directory is a dataset (its ``dataset.yaml`` and the files it lists, nothing else)
+that neither is nor contains the current directory or a protected path (the bag being read).
 """
 
 from __future__ import annotations
 
 import math
-import os
-import shutil
-import tempfile
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,8 +27,11 @@ from typing import Any
 import numpy as np
 import yaml
 
+from jetpipe_ros import fileio
 from jetpipe_ros.dataset.errors import DatasetError
 from jetpipe_ros.dataset.experiment import REQUIRED, Experiment, read_experiment, write_experiment
+from jetpipe_ros.fileio import load_yaml
+from jetpipe_ros.model.limits import NOMINAL, Limits
 
 INDEX = "dataset.yaml"
 PISTON = ("free", "locked")
@@ -119,7 +122,7 @@ def read_index(root: str | Path) -> list[Entry]:
     if not root.is_dir():
         raise DatasetError(f"{root}: not a dataset directory (it does not exist or is a file)")
     try:
-        doc = yaml.safe_load(index.read_text())
+        doc = load_yaml(index)
     except FileNotFoundError:
         raise DatasetError(f"{index}: missing; a dataset directory needs an index listing its "
                            f"experiments (DESIGN.md s.5)") from None
@@ -138,43 +141,89 @@ def read_index(root: str | Path) -> list[Entry]:
     return entries
 
 
-def read_dataset(root: str | Path, required: Iterable[str] = REQUIRED) -> Dataset:
-    """Read ``root/dataset.yaml`` and every experiment it lists, validating all of them."""
+def read_dataset(root: str | Path, required: Iterable[str] = REQUIRED,
+                 limits: Limits = NOMINAL) -> Dataset:
+    """Read ``root/dataset.yaml`` and every experiment it lists, validating all of them
+    (values outside ``limits``, the nominal actuator's by default, are refused)."""
     root = Path(root)
     entries = read_index(root)
-    experiments = [read_experiment(root / e.file, required) for e in entries]
+    experiments = [read_experiment(root / e.file, required, limits) for e in entries]
     return Dataset(root=root, entries=entries, experiments=experiments)
+
+
+def _within(path: Path, other: Path) -> bool:
+    """True if ``path`` is ``other`` or inside it (both resolved)."""
+    return path == other or other in path.parents
+
+
+def check_target(root: str | Path, overwrite: bool = False,
+                 protect: Iterable[str | Path] = ()) -> Path:
+    """Check, before any work, that a dataset can be written to ``root``; return it.
+
+    ``root`` must be absent or an empty directory, or (``overwrite``) a dataset directory: its
+    ``dataset.yaml`` and the files that lists, nothing else. It must never be, contain or lie
+    inside a path in ``protect`` (e.g. the bag being exported), nor be or contain the current
+    directory. Raises DatasetError (or fileio.FileError if it cannot be written) naming it.
+    """
+    root = fileio.output_dir(root, "dataset directory")
+    real = root.resolve()
+    for keep in protect:
+        keep = Path(keep).resolve()
+        relation = ("is" if real == keep else "contains" if _within(keep, real)
+                    else "lies inside" if _within(real, keep) else None)
+        if relation:
+            raise DatasetError(f"{root}: refusing to write the dataset there: it {relation} "
+                               f"{keep}, which is being read")
+    if _within(Path.cwd().resolve(), real):
+        raise DatasetError(f"{root}: refusing to write the dataset there: it is or contains the "
+                           f"current directory; give a new directory")
+    if not root.is_dir() or not any(root.iterdir()):
+        return root
+    if not overwrite:
+        raise DatasetError(f"{root}: directory is not empty (pass overwrite to replace a "
+                           f"dataset written before)")
+    problem = _not_a_dataset(root)
+    if problem:
+        raise DatasetError(f"{root}: refusing to overwrite: {problem}; only a dataset directory "
+                           f"(dataset.yaml and the files it lists) is replaced")
+    return root
+
+
+def _not_a_dataset(root: Path) -> str | None:
+    """Why directory ``root`` is not a dataset directory (None if it is one)."""
+    if not (root / INDEX).is_file():
+        return f"it has no {INDEX}, so it is not a dataset"
+    try:
+        listed = {Path(e.file).as_posix() for e in read_index(root)}
+    except DatasetError as exc:
+        return f"its {INDEX} is not a dataset index ({exc})"
+    for item in sorted(root.rglob("*")):
+        name = item.relative_to(root).as_posix()
+        if item.is_symlink() or not (item.is_file() or item.is_dir()):
+            return f"it holds {name!r}, which is not a plain file"
+        if item.is_file() and name != INDEX and name not in listed:
+            return f"it holds {name!r}, which {INDEX} does not list"
+    return None
 
 
 def write_dataset(root: str | Path,
                   experiments: Sequence[tuple[Entry, Mapping[str, np.ndarray]]],
-                  overwrite: bool = False) -> Path:
+                  overwrite: bool = False, protect: Iterable[str | Path] = ()) -> Path:
     """Write a dataset directory atomically and return its path.
 
     Args:
-        root: target directory; it must not exist or be empty unless ``overwrite``.
+        root: target directory; see :func:`check_target`.
         experiments: (entry, columns) pairs; columns start with ``t`` (see write_experiment).
-        overwrite: replace an existing non-empty directory.
+        overwrite: replace an existing dataset directory.
+        protect: paths the dataset must neither replace nor contain (see check_target).
     """
-    root = Path(root)
-    if root.exists() and not root.is_dir():
-        raise DatasetError(f"{root}: exists and is not a directory")
-    if root.is_dir() and any(root.iterdir()) and not overwrite:
-        raise DatasetError(f"{root}: directory is not empty (pass overwrite to replace it)")
+    root = check_target(root, overwrite, protect)
     names = [e.file for e, _ in experiments]
     if len(set(names)) != len(names):
         raise DatasetError(f"{root}: two experiments share a file name")
-    root.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{root.name}.", suffix=".tmp", dir=root.parent))
-    try:
+    with fileio.staged_directory(root, replace=overwrite) as tmp:
         for entry, cols in experiments:
             write_experiment(tmp / entry.file, cols)
         index = {"experiments": [e.to_yaml() for e, _ in experiments]}
-        (tmp / INDEX).write_text(yaml.safe_dump(index, sort_keys=False))
-        if root.exists():
-            shutil.rmtree(root)
-        os.replace(tmp, root)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+        fileio.write_text(tmp / INDEX, yaml.safe_dump(index, sort_keys=False))
     return root

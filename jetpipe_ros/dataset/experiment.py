@@ -2,24 +2,28 @@
 
 Optional columns ``v`` [m/s] and ``f_load`` [N] are read when present; other columns are ignored.
 Reading checks what a wrong answer would otherwise hide: a header with the required columns,
-numbers everywhere (errors give file, line and column), finite values and strictly increasing,
-regularly sampled time. Writing goes through a temporary file renamed into place, so a failed
-write never leaves a half-written file behind.
+numbers everywhere (errors give file, line and column), finite values, strictly increasing,
+regularly sampled time, and physically possible values in the contract's units
+(:mod:`jetpipe_ros.dataset.plausibility`: ranges, likely unit mistakes). Writing goes through a
+temporary file renamed into place (:mod:`jetpipe_ros.fileio`), so a failed write never leaves a
+half-written file behind.
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import math
-import os
-import tempfile
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from jetpipe_ros import fileio
+from jetpipe_ros.dataset import plausibility
 from jetpipe_ros.dataset.errors import DatasetError
+from jetpipe_ros.model.limits import NOMINAL, Limits
 
 REQUIRED = ("t", "u", "y", "p1", "p2")
 OPTIONAL = ("v", "f_load")
@@ -54,8 +58,13 @@ class Experiment:
         return cols
 
 
-def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED) -> Experiment:
-    """Read and validate an experiment CSV; raise DatasetError naming file, line and column."""
+def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
+                    limits: Limits = NOMINAL) -> Experiment:
+    """Read and validate an experiment CSV; raise DatasetError naming file, line and column.
+
+    Values outside ``limits`` (the nominal actuator's by default) are refused as physically
+    impossible, with the likely unit mistake when a whole column is off.
+    """
     path = Path(path)
     required = tuple(required)
     try:
@@ -75,6 +84,7 @@ def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED) -> Exp
         wanted = [c for c in (*REQUIRED, *OPTIONAL) if c in header]
         index = {c: header.index(c) for c in wanted}
         rows: list[list[float]] = []
+        lines: list[int] = []
         for line_no, row in enumerate(reader, start=2):
             if not row or all(not cell.strip() for cell in row):
                 continue
@@ -92,11 +102,13 @@ def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED) -> Exp
                                        f"non-finite value {cell!r}")
                 values.append(value)
             rows.append(values)
+            lines.append(line_no)
     if len(rows) < 2:
         raise DatasetError(f"{path}: needs at least 2 data rows, has {len(rows)}")
     data = np.array(rows)
     cols = {c: np.ascontiguousarray(data[:, j]) for j, c in enumerate(wanted)}
     _check_time(path, cols["t"])
+    plausibility.check(path, cols, limits, np.array(lines))
     return Experiment(name=path.stem, **cols)
 
 
@@ -122,13 +134,7 @@ def write_experiment(path: str | Path, columns: Mapping[str, np.ndarray]) -> Non
     data = np.column_stack([np.asarray(columns[n], dtype=float) for n in names])
     if not np.all(np.isfinite(data)):
         raise DatasetError(f"{path}: refusing to write non-finite values")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", newline="") as handle:
-            handle.write(",".join(names) + "\n")
-            np.savetxt(handle, data, delimiter=",", fmt="%.9g")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    text = io.StringIO()
+    text.write(",".join(names) + "\n")
+    np.savetxt(text, data, delimiter=",", fmt="%.9g")
+    fileio.write_text(path, text.getvalue())

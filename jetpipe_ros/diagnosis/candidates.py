@@ -131,6 +131,8 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     Candidate("moving_mass", (Knob("mass", 0.1, 10.0, 1.0, log=True),), {"mass": 3.0}),
     Candidate("sensor_dynamics", (Knob("time_constant", 0.0, 0.02, 0.0),
                                   Knob("bias", -2e4, 2e4, 0.0),
+                                  Knob("bias_difference", -2e4, 2e4, 0.0),
+                                  Knob("gain", -0.05, 0.05, 0.0),
                                   Knob("drift", -500.0, 500.0, 0.0)),
               {"time_constant": 0.005, "bias": 5e3, "drift": 0.0}),
 )}

@@ -4,11 +4,15 @@ from __future__ import annotations
 
 import argparse
 
+from jetpipe_ros.arguments import positive_int
+
 
 def _diagnose(args: argparse.Namespace) -> int:
     from jetpipe_ros.diagnosis.fleet import dataset_dirs
+    from jetpipe_ros.fileio import output_dir
     from jetpipe_ros.model import ModelParams, load_params
 
+    output_dir(args.out, "--out")  # before the work
     params = load_params(args.params) if args.params else ModelParams()
     dirs, is_fleet = dataset_dirs(args.dataset)
     if is_fleet:
@@ -59,7 +63,9 @@ def _selfcheck(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from jetpipe_ros.diagnosis.selfcheck import run_selfcheck
+    from jetpipe_ros.fileio import output_dir
 
+    output_dir(args.out, "--out")  # before the work
     summary = run_selfcheck(args.cases, args.seed, out_dir=Path(args.out), workers=args.jobs,
                             deviate=args.deviations, source=args.truth,
                             scheduler=args.scheduler, restart=args.restart)
@@ -88,7 +94,7 @@ def add_command(subparsers) -> None:
                         "fleet.html (exit status 1 if any dataset failed)")
     p.add_argument("--out", required=True, metavar="OUT_DIR", help="output directory")
     p.add_argument("--params", help="nominal model parameter YAML (default: DESIGN.md s.2)")
-    p.add_argument("--jobs", type=int, default=2,
+    p.add_argument("--jobs", type=positive_int, default=2,
                    help="worker processes of the local Dask cluster (default 2; 1: in this "
                         "process); ignored with --scheduler")
     p.add_argument("--scheduler", metavar="ADDRESS",
@@ -102,10 +108,10 @@ def add_command(subparsers) -> None:
                     "effect in a form no candidate has) at a random realistic size, diagnose "
                     "each dataset blind, and print the confusion matrix, parameter recovery "
                     "and held-out shrinkage.")
-    c.add_argument("--cases", type=int, default=30, help="number of cases (default 30)")
+    c.add_argument("--cases", type=positive_int, default=30, help="number of cases (default 30)")
     c.add_argument("--seed", type=int, default=0, help="seed of sizes and noise (default 0)")
     c.add_argument("--out", default="out/selfcheck", help="where selfcheck.md/json go")
-    c.add_argument("--jobs", type=int, default=2,
+    c.add_argument("--jobs", type=positive_int, default=2,
                    help="worker processes of the local Dask cluster, one case each at a time "
                         "(default 2; 1: in this process); ignored with --scheduler")
     c.add_argument("--scheduler", metavar="ADDRESS",

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.signal import savgol_filter
+from scipy.stats import median_abs_deviation
 
 from jetpipe_ros.dataset import Dataset, DatasetError, Entry, Experiment
 
@@ -100,13 +101,14 @@ def smoothed(x: np.ndarray, dt: float, window_s: float = 0.015) -> np.ndarray:
 
 
 def noise_level(x: np.ndarray) -> float:
-    """White-noise standard deviation of a sampled signal: robust (MAD) spread of its second
-    differences over sqrt(6). Smooth motion contributes little at 1 kHz; transients are outliers.
+    """White-noise standard deviation of a sampled signal: robust (MAD, scaled to a normal
+    standard deviation) spread of its second differences over sqrt(6). Smooth motion
+    contributes little at 1 kHz; transients are outliers.
     """
     d2 = np.diff(x, 2)
     if d2.size < 10:
         return 0.0
-    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
+    return float(median_abs_deviation(d2, scale="normal") / np.sqrt(6.0))
 
 
 def prepare(dataset: Dataset) -> Prepared:

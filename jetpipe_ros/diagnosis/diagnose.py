@@ -17,11 +17,7 @@ complete.
 from __future__ import annotations
 
 import dataclasses
-import json
-import os
-import shutil
 import sys
-import tempfile
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -42,15 +38,18 @@ from jetpipe_ros.diagnosis import residuals
 from jetpipe_ros.diagnosis.noise_floor import calibrate, twin
 from jetpipe_ros.diagnosis.prediction import HORIZON, predict
 from jetpipe_ros.diagnosis.score import METRIC, Score, predict_all, score, window_errors
-from jetpipe_ros.diagnosis.verdict import (Ranked, Settled, decide, needs_pairs,
+from jetpipe_ros.diagnosis.verdict import (NOISE_GAP, Ranked, Settled, decide, needs_pairs,
                                            paired_t, rank, settle)
 from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError, simulate
+from jetpipe_ros.model.limits import Limits
 
 SCHEMA = "jetpipe.diagnosis/2"
 OUTPUTS = ("diagnosis.json", "report.html", "augmented.yaml")
-#: Candidates whose typical-size signature is below this fraction of the noise variance are
-#: reported as invisible in the experiments given.
-VISIBLE = 0.02
+#: A candidate is refitted jointly with the calibration knobs only when it removes at least
+#: this fraction of the noise variance from the training error, alone or on the recalibrated
+#: model (an effect at the visibility limit, a gap of NOISE_GAP, removes about four times the
+#: noise variance: this is 200 times less).
+JOINT_MIN = 0.02
 #: Candidates refitted jointly with the best single effect as pairs.
 PAIR_POOL = 2
 #: Model-evaluation budgets of the calibration and of a candidate refitted jointly with it.
@@ -88,9 +87,9 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
     stood in for the effect (recalibrated alone, it took the effect's place) or the effect for a
     knob, so the joint fit starts from whichever of (recalibration, effect on top of it),
     (nominal knobs, effect alone) and (recalibration, effect alone) fits the training data best.
-    A candidate that removes less than :data:`VISIBLE` of the noise variance from the training
-    error both alone and on the recalibrated model is not refitted: at that size it could not
-    show. Returns the fits alone by candidate, and the calibrated fits."""
+    A candidate that removes less than :data:`JOINT_MIN` of the noise variance from the
+    training error both alone and on the recalibrated model is not refitted: at that size it
+    could not show. Returns the fits alone by candidate, and the calibrated fits."""
     progress(f"fitting {len(names)} candidates alone and on the recalibrated model")
     n = len(names)
     fits = fitter.run([Job(nominal, (e,)) for e in names] + [Job(cal.params, (e,))
@@ -100,7 +99,7 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
     onto = [stacked(cal, f) for f in fits[n:]]
     todo = [(e, f) for e, f in zip(names, onto)
             if max(_removed(nom_train, alone[e].train),
-                   _removed(cal.train, f.train)) >= VISIBLE]
+                   _removed(cal.train, f.train)) >= JOINT_MIN]
     progress(f"refitting {len(todo)} candidates jointly with the calibration knobs "
              f"({', '.join(e for e, _ in todo) or 'none'})")
     jobs = [Job(nominal, f.groups, np.stack([
@@ -163,9 +162,11 @@ def _label(f: Fit) -> str:
 
 
 def visibility(prepared: Prepared, nominal: ModelParams, base_preds, cand: Candidate) -> float:
-    """Signature of the candidate at its typical size, as a fraction of the noise variance."""
+    """Signature of the candidate at its typical size: the gap [%] it would open on these
+    experiments (the gap metric of its noise-free predictions against the nominal model's).
+    Below :data:`verdict.NOISE_GAP` it could not show beyond noise."""
     preds = predict_all(cand.apply(nominal, dict(cand.typical)), prepared, None)
-    num, noise = [], []
+    num = []
     for s in SIGNALS:
         d, c = 0.0, 0
         for rec, a, b in zip(prepared.records, preds, base_preds):
@@ -175,8 +176,7 @@ def visibility(prepared: Prepared, nominal: ModelParams, base_preds, cand: Candi
                 c += int(m.sum())
         if c:
             num.append(d / c / prepared.scale[s] ** 2)
-            noise.append((prepared.noise[s] / prepared.scale[s]) ** 2)
-    return float(np.mean(num) / max(np.mean(noise), 1e-12)) if num else 0.0
+    return 100.0 * float(np.sqrt(np.mean(num))) if num else 0.0
 
 
 def subsystem_gaps(prepared: Prepared, nominal: ModelParams) -> dict:
@@ -263,7 +263,7 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
     if out_dir.exists() and not out_dir.is_dir():
         raise ParameterError(f"--out {out_dir}: exists and is not a directory")
     progress(f"reading {dataset_dir}")
-    dataset = read_dataset(dataset_dir)
+    dataset = read_dataset(dataset_dir, limits=Limits.from_params(nominal))
     prepared = prepare(dataset)
     dt = prepared.dt
     progress(f"{len(prepared.records)} experiments, {prepared.seconds('train'):.1f} s train, "
@@ -320,7 +320,8 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
     errors = uncertainty(prepared, nominal, final) if final is not None else {}
     progress("equation errors of the augmented model, against its noise twin")
     stroke = nominal["mechanics.stroke"]
-    equations = residuals.locate(prepared, twin(prepared, augmented), augmented, stroke)
+    equations, remainders = residuals.locate(prepared, twin(prepared, augmented), augmented,
+                                             stroke)
     aug_all = predict_all(augmented, prepared, None) if final is not None else nom_all
     aug_hold = score(prepared, aug_all, "holdout")
     preds = {"nominal": nom_all, "augmented": aug_all}
@@ -344,7 +345,7 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
     result = _result(prepared, nominal, settled, ranking, alone_ranking, cal, cal_row, nom_hold,
                      aug_hold, localization, seen, separating, preds, errors)
     progress(f"writing {out_dir}")
-    _write_outputs(out_dir, result, augmented, prepared, preds)
+    _write_outputs(out_dir, result, augmented, prepared, preds, remainders)
     progress(f"verdict: {result['verdict']['effect']} "
              f"(confidence {result['verdict']['confidence']:.2f}); "
              f"{result['verdict']['reason']}")
@@ -444,7 +445,7 @@ def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
                         if settled.alternative else None),
         "separating_experiment": separating,
     }
-    invisible = sorted(e for e, v in seen.items() if v < VISIBLE)
+    invisible = sorted(e for e, v in seen.items() if v < NOISE_GAP)
     paper = {}
     for label in ("nominal", "augmented"):
         pos = position_error_pct(prepared, preds[label], "holdout")
@@ -469,8 +470,8 @@ def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
                 "recalibrated": cal.holdout.gap, "on": "holdout", "paper_metrics": paper},
         "localization": localization,
         "ranking": rows,
-        "visibility": {"at_typical_size": seen, "too_small_to_see": invisible,
-                       "threshold": VISIBLE},
+        "visibility": {"at_typical_size_gap_pct": seen, "too_small_to_see": invisible,
+                       "threshold_gap_pct": NOISE_GAP},
         "data": {"split": prepared.split_note, "notes": prepared.notes,
                  "sample_time_s": prepared.dt, "noise": prepared.noise,
                  "scale": prepared.scale,
@@ -483,27 +484,13 @@ def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
 
 
 def _write_outputs(out_dir: Path, result: dict, augmented: ModelParams, prepared: Prepared,
-                   preds: dict) -> None:
+                   preds: dict, remainders: dict) -> None:
+    from jetpipe_ros import fileio
     from jetpipe_ros.diagnosis.report import render
 
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
-    try:
-        (tmp / "diagnosis.json").write_text(json.dumps(result, indent=2, default=_json))
-        header = ("# jetpipe diagnose: the nominal model plus the effect the diagnosis "
-                  f"identified ({result['verdict']['effect']}).\n")
-        (tmp / "augmented.yaml").write_text(header + augmented.to_ros_yaml(only_changed=True))
-        (tmp / "report.html").write_text(render(result, prepared, preds))
-        out_dir.mkdir(parents=True, exist_ok=True)
-        for name in OUTPUTS:
-            os.replace(tmp / name, out_dir / name)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-
-
-def _json(x):
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    raise TypeError(f"not JSON serialisable: {type(x).__name__}")
+    header = ("# jetpipe diagnose: the nominal model plus the effect the diagnosis "
+              f"identified ({result['verdict']['effect']}).\n")
+    texts = {"diagnosis.json": fileio.to_json(result) + "\n",  # strict: NaN/inf as null
+             "augmented.yaml": header + augmented.to_ros_yaml(only_changed=True),
+             "report.html": render(result, prepared, preds, remainders)}
+    fileio.write_files({out_dir / name: texts[name] for name in OUTPUTS})  # all or none

@@ -16,20 +16,16 @@ from __future__ import annotations
 
 import glob
 import html
-import json
-import os
-import shutil
-import tempfile
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-import numpy as np
 from distributed import as_completed
 
 from jetpipe_ros.dataset import DatasetError
 from jetpipe_ros.diagnosis.cluster import Cluster
 from jetpipe_ros.diagnosis.diagnose import OUTPUTS, diagnose
+from jetpipe_ros.fileio import to_json, write_files
 from jetpipe_ros.model import ModelParams, ParameterError
 
 SCHEMA = "jetpipe.fleet/1"
@@ -183,15 +179,8 @@ def summary(rows: Sequence[dict], seconds: float, where: str) -> dict:
 
 def write(out_dir: Path, fleet: dict) -> None:
     """Write fleet.json and fleet.html to ``out_dir``, both complete or neither replaced."""
-    tmp = Path(tempfile.mkdtemp(prefix=".fleet.", dir=out_dir))
-    try:
-        (tmp / "fleet.json").write_text(json.dumps(fleet, indent=2,
-                                                   default=lambda x: np.asarray(x).tolist()))
-        (tmp / "fleet.html").write_text(render(fleet))
-        for name in OUTPUTS_FLEET:
-            os.replace(tmp / name, out_dir / name)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+    write_files({out_dir / "fleet.json": to_json(fleet) + "\n",
+                 out_dir / "fleet.html": render(fleet)})
 
 
 def _colors(rows: Sequence[dict]) -> dict[str, str]:

@@ -56,12 +56,18 @@ def windows(n: int, dt: float, horizon: float = HORIZON, warmup: float = WARMUP)
     return held
 
 
-def _sensor_inverse(params: ModelParams, p_meas: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Chamber pressure [Pa] that the model's pressure sensor would read as ``p_meas``."""
+def _sensor_inverse(params: ModelParams, p_meas: np.ndarray, t: np.ndarray,
+                    chamber: int) -> np.ndarray:
+    """Pressure [Pa] in chamber 1 or 2 that the model's pressure sensor would read as
+    ``p_meas``."""
     if not params["effects.sensor_dynamics.enabled"]:
         return p_meas
-    tau = params["effects.sensor_dynamics.time_constant"]
-    p = p_meas - params["effects.sensor_dynamics.bias"] - params["effects.sensor_dynamics.drift"] * t
+    e = "effects.sensor_dynamics."
+    offset = params[e + "bias"] + params[e + "drift"] * t
+    if chamber == 2:
+        offset = offset + params[e + "bias_difference"]
+    p = (p_meas - offset) / (1.0 + params[e + "gain"])
+    tau = params[e + "time_constant"]
     if tau > 0.0 and p.size > 2:
         p = p + tau * np.gradient(p, t)
     return p
@@ -75,7 +81,8 @@ def predict(params: ModelParams, rec: Record, dt: float, mode: str = "full",
     if rec.regulated:
         mode = "mechanics"
     y = rec.smooth["y"]
-    p1, p2 = (_sensor_inverse(params, rec.smooth[s], rec.t) for s in ("p1", "p2"))
+    p1, p2 = (_sensor_inverse(params, rec.smooth[s], rec.t, i)
+              for i, s in ((1, "p1"), (2, "p2")))
     changes = {"mechanics.locked": rec.locked, "sensors.noise": False,
                "integration.sample_time": dt,
                "mechanics.initial_position": float(np.clip(y[0], -0.5, 0.5)),

@@ -180,6 +180,14 @@ def summary(result: dict) -> str:
     off = ", ".join(cal["summary"]) or "all within 2 % of nominal"
     if v["effect"] == "none":
         lines.append(f"<b>No unmodelled effect identified.</b> {html.escape(v['reason'])}.")
+    elif v["effect"] == "unlisted":
+        lines.append(f"<b>A gap beyond noise remains that no listed effect explains</b> "
+                     f"(<code>unlisted</code>, subsystem {html.escape(v['subsystem'])}): "
+                     f"{html.escape(v['reason'])}.")
+        if v["partial"]:
+            lines.append(f"The best candidate, <code>{html.escape(v['partial']['candidate'])}"
+                         f"</code>, removes only {100 * v['partial']['shrinkage']:.0f} % of it: "
+                         f"at most part of the cause.")
     else:
         params = v["params"] if len(v["effects"]) == 1 else {
             f"{e}.{k}": x for e, d in v["params"].items() for k, x in d.items()}
@@ -259,6 +267,14 @@ def summary(result: dict) -> str:
     return "<p>" + "</p><p>".join(lines) + "</p>"
 
 
+def equation_words(result: dict) -> str:
+    """The equation-error finding in words (:func:`residuals.describe`)."""
+    from jetpipe_ros.diagnosis.residuals import describe
+
+    words = describe(result["localization"]["equations"])
+    return words[0].upper() + words[1:]
+
+
 def _table(rows: list[list], header: list[str]) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = "".join("<tr>" + "".join(f"<td>{_cell(c)}</td>" for c in r) + "</tr>" for r in rows)
@@ -284,7 +300,39 @@ def _cell(c) -> str:
     return html.escape(str(c))
 
 
-def render(result: dict, prepared: Prepared, preds: dict) -> str:
+def equations_figure(result: dict, remainders: dict) -> str:
+    """Each equation's error beyond its calibration-shaped part, blocked over 50 ms, against the
+    library term that carries most of it (or over the blocks when none does): the shape of what
+    the model misses."""
+    plt = _plt()
+    eqs = result["localization"]["equations"]["equations"]
+    names = [n for n in eqs if n in remainders]
+    if not names:
+        return ""
+    fig, axes = plt.subplots(1, len(names), figsize=(4.0 * len(names), 3.4), squeeze=False)
+    for ax, name in zip(axes[0], names):
+        e = remainders[name]
+        info = eqs[name]
+        scale = 1e3 if e.unit == "kg/s" else 1.0
+        unit = "g/s" if e.unit == "kg/s" else e.unit
+        terms = info["terms"]
+        term = next((t for t in e.terms if terms and t.name == terms[0]["term"]), None)
+        if term is not None and np.std(term.values) > 0:
+            ax.plot(term.values, e.error * scale, ".", ms=2, color="#1f77b4", alpha=0.5)
+            ax.set_xlabel(term.name)
+        else:
+            ax.plot(e.error * scale, ".", ms=2, color="#888888", alpha=0.5)
+            ax.set_xlabel("50-ms block")
+        beyond = info["over_noise"] >= result["localization"]["equations"]["beyond_noise"]
+        ax.set_title(f"{name}\n{info['over_noise']:.1f} x noise"
+                     + (" (beyond noise)" if beyond else ""), fontsize=9,
+                     color=COLORS["nominal"] if beyond else "#222222")
+        ax.set_ylabel(f"error [{unit}]")
+    fig.tight_layout()
+    return _figure_png(fig)
+
+
+def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> str:
     """The report as an HTML string."""
     loc = result["localization"]
     sig_rows = [[s, loc["signals"]["nominal"].get(s), loc["signals"]["augmented"].get(s)]
@@ -308,8 +356,8 @@ def render(result: dict, prepared: Prepared, preds: dict) -> str:
     cal = result["calibration"]
     cal_rows = [[k, ", ".join(cal["parameters"][k]), f"{x:.3f}",
                  f"{cal['recalibration_alone'][k]:.3f}"] for k, x in cal["knobs"].items()]
-    vis = result["visibility"]["at_typical_size"]
-    vis_rows = [[e, x, "yes" if x >= result["visibility"]["threshold"] else "no"]
+    vis = result["visibility"]["at_typical_size_gap_pct"]
+    vis_rows = [[e, x, "yes" if x >= result["visibility"]["threshold_gap_pct"] else "no"]
                 for e, x in vis.items()]
     data = result["data"]
     exp_rows = [[e["name"], e["piston"], e["train_s"], e["holdout_s"]]
@@ -343,6 +391,9 @@ def render(result: dict, prepared: Prepared, preds: dict) -> str:
         "<h2>Model against data</h2>", overlay_figure(prepared, preds, result),
         "<h2>Where the gap lies</h2>", "<h3>By regime (held out)</h3>",
         regime_figure(result), "<h3>By frequency</h3>", frequency_figure(result),
+        "<h3>By equation (what the augmented model's equations leave, all data)</h3>",
+        f"<p>{html.escape(equation_words(result))}.</p>",
+        equations_figure(result, remainders),
         "<h3>By signal (held out, %)</h3>",
         _table(sig_rows, ["signal", "nominal", "augmented"]),
         "<h3>By subsystem (nominal model, all data, %)</h3>",
@@ -350,9 +401,10 @@ def render(result: dict, prepared: Prepared, preds: dict) -> str:
         "<h3>The paper's metrics (held out)</h3>",
         _table(metric_rows, ["metric", "nominal", "augmented"]),
         "<h2>What these experiments can show</h2>",
-        "<p>Signature of each candidate at its typical size, as a fraction of the sensor "
-        "noise variance; below the threshold the data cannot tell whether it is there.</p>",
-        _table(vis_rows, ["candidate", "signature / noise", "visible"]),
+        "<p>Signature of each candidate at its typical size: the held-out gap [%] it would open "
+        "on these experiments; below the 0.5 % that counts as beyond noise the data cannot tell "
+        "whether it is there.</p>",
+        _table(vis_rows, ["candidate", "gap at typical size [%]", "visible"]),
         "<h2>Data</h2>",
         f"<p>Split: {html.escape(data['split'])}. Sample time {data['sample_time_s'] * 1e3:g} "
         f"ms. Estimated sensor noise: position {data['noise']['y'] * 1e6:.1f} um, pressures "

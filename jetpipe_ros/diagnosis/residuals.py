@@ -16,9 +16,11 @@ measurements (smoothed, zero phase) rather than simulated:
   [N].
 
 Errors and terms are averaged over 50-ms blocks (the noise of the derivatives falls, the missing
-physics stays), and each equation error is compared with the same error on the noise twin of the
+physics stays). The part of each error that has the shape of a calibration knob (a flow-map or
+valve gain error, a dead volume, a friction level) is removed by least squares: it is a mis-set
+parameter, not missing physics. What remains is compared with the same on the noise twin of the
 dataset (the model itself re-measured with the sensor noise, :mod:`noise_floor`): the ratio of
-their RMS says which equation holds a gap beyond noise. The error is then regressed on a small library of terms that
+their RMS says which equation holds a gap beyond noise that no recalibration explains. The error is then regressed on a small library of terms that
 each name a physical shape and the subsystem it belongs to (a constant, an offset in the valve
 command, a flow gain that changes with chamber pressure, a leak across the piston or to
 atmosphere, a force near the end stops, ...), with a sparse linear model whose number of terms
@@ -66,12 +68,15 @@ _SUBSYSTEM_OF_EQUATION = {"chamber 1 mass balance": "valve+chamber",
 
 @dataclass
 class Term:
-    """One library term: what its shape means, the subsystem it points to, its values."""
+    """One library term: what its shape means, the subsystem it points to, its values, and
+    whether it is the shape of a calibration knob (a mis-set nominal parameter, not missing
+    physics)."""
 
     name: str
     meaning: str
     subsystem: str
     values: np.ndarray
+    calibration: bool = False
 
 
 @dataclass
@@ -133,8 +138,10 @@ def chamber_errors(params: ModelParams, rec: Record, dt: float) -> tuple[np.ndar
     return e1, e2, rates[2], rates[3], rates[4], rates[5], u_eq
 
 
-def force_error(params: ModelParams, rec: Record, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Force-balance error [N] while sliding, and the mask of sliding samples."""
+def force_error(params: ModelParams, rec: Record, dt: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Force-balance error [N] while sliding, the mask of sliding samples, and the model's
+    Stribeck and viscous friction there [N]."""
     c = build_constants(params)
     y = rec.smooth["y"]
     v = rec.v
@@ -142,11 +149,15 @@ def force_error(params: ModelParams, rec: Record, dt: float) -> tuple[np.ndarray
     p1, p2 = rec.smooth["p1"], rec.smooth["p2"]
     sliding = (np.abs(v) > SLIDING) & (np.abs(y) < c.y_max)
     err = np.zeros(rec.t.size)
+    static = np.zeros(rec.t.size)
+    viscous = np.zeros(rec.t.size)
     for k in np.flatnonzero(sliding):
         f_s, v_s, f_v, f_c = friction_parameters(c.planes, np.sign(v[k]), p1[k], p2[k])
-        friction = stribeck_force(v[k], f_s, v_s, f_c) + f_v * v[k]
-        err[k] = c.mass * a[k] - (c.area * (p1[k] - p2[k]) - rec.f_load[k] - friction)
-    return err, sliding
+        static[k] = stribeck_force(v[k], f_s, v_s, f_c)
+        viscous[k] = f_v * v[k]
+        err[k] = c.mass * a[k] - (c.area * (p1[k] - p2[k]) - rec.f_load[k] - static[k]
+                                  - viscous[k])
+    return err, sliding, static, viscous
 
 
 def _chamber_terms(i: int, p: np.ndarray, p_other: np.ndarray, dp: np.ndarray, q: np.ndarray,
@@ -160,9 +171,11 @@ def _chamber_terms(i: int, p: np.ndarray, p_other: np.ndarray, dp: np.ndarray, q
         Term("valve offset", "an offset in the valve command (the flow map's null shifted)",
              "valve", dqdu),
         Term("valve gain", "a valve gain error (flow error proportional to the command's "
-             "effect)", "valve", u_eq * dqdu),
+             "effect)", "valve", u_eq * dqdu, calibration=True),
         Term("flow scale", "a flow-map gain error (flow error proportional to the flow)",
-             "valve", q),
+             "valve", q, calibration=True),
+        Term("flow scale filling", "a flow-map gain error where the flow fills the chamber",
+             "valve", np.maximum(q, 0.0), calibration=True),
         Term("flow x pressure", f"a flow-map gain that changes with chamber {i}'s pressure",
              "valve", q * (p - mid) / (p_supply - P_ATM)),
         Term("leak to atmosphere", f"a flow out of chamber {i} that grows with its pressure "
@@ -172,14 +185,20 @@ def _chamber_terms(i: int, p: np.ndarray, p_other: np.ndarray, dp: np.ndarray, q
         Term("compression", f"a term with the volume change of chamber {i} (non-isothermal "
              f"gas)", "chamber", -sign * area * p * v / rt),
         Term("dead volume", f"a term with chamber {i}'s pressure rate (its volume, or the gas "
-             f"stiffness, other than the model's)", "chamber", dp / rt),
+             f"stiffness, other than the model's)", "chamber", dp / rt, calibration=True),
     ]
 
 
 def _force_terms(y: np.ndarray, v: np.ndarray, a: np.ndarray, dp: np.ndarray, area: float,
-                 y_max: float) -> list[Term]:
+                 y_max: float, static: np.ndarray, viscous: np.ndarray) -> list[Term]:
     zone = np.maximum(np.abs(y) - (y_max - CUSHION), 0.0) * np.sign(y)
+    entry, exit_ = v < 0.0, v > 0.0
     return [
+        *(Term(f"friction level {ph}", f"the {ph}-phase breakaway and Coulomb friction "
+               f"off", "mechanics", static * m, calibration=True)
+          for ph, m in (("entry", entry), ("exit", exit_))),
+        *(Term(f"viscous level {ph}", f"the {ph}-phase viscous friction off", "mechanics",
+               viscous * m, calibration=True) for ph, m in (("entry", entry), ("exit", exit_))),
         Term("constant", "a constant force on the piston", "mechanics", np.ones_like(y)),
         Term("viscous", "a force proportional to the velocity", "mechanics", v),
         Term("coulomb", "a constant force against the motion", "mechanics", np.sign(v)),
@@ -212,8 +231,8 @@ def equation_errors(prepared: Prepared, params: ModelParams,
     def add(eq: str, err: np.ndarray, terms: list[Term], reg: dict, keep: np.ndarray) -> None:
         d = parts[eq]
         d["err"].append(_blocks(err[keep], n))
-        d["terms"].append([Term(t.name, t.meaning, t.subsystem, _blocks(t.values[keep], n))
-                           for t in terms])
+        d["terms"].append([Term(t.name, t.meaning, t.subsystem, _blocks(t.values[keep], n),
+                                t.calibration) for t in terms])
         d["reg"].append({k: _blocks(m[keep].astype(float), n) > 0.5 for k, m in reg.items()})
 
     for rec in prepared.records:
@@ -229,23 +248,37 @@ def equation_errors(prepared: Prepared, params: ModelParams,
                                                         c.area, c.rt, c.p_supply), reg,
                     everywhere)
         if not rec.locked:
-            err, sliding = force_error(params, rec, dt)
+            err, sliding, static, viscous = force_error(params, rec, dt)
             a = _derivative(rec.y, dt, 2)
             add("force balance", err, _force_terms(rec.smooth["y"], rec.v, a,
                                                    rec.smooth["p1"] - rec.smooth["p2"],
-                                                   c.area, c.y_max), reg, sliding)
+                                                   c.area, c.y_max, static, viscous),
+                reg, sliding)
     out = []
     for eq, d in parts.items():
         if not d["err"]:
             continue
         terms = [Term(t.name, t.meaning, t.subsystem,
-                      np.concatenate([ts[j].values for ts in d["terms"]]))
+                      np.concatenate([ts[j].values for ts in d["terms"]]), t.calibration)
                  for j, t in enumerate(d["terms"][0])]
         regime = {r: np.concatenate([rg.get(r, np.zeros(e.size, dtype=bool))
                                      for rg, e in zip(d["reg"], d["err"])]) for r in REGIMES}
         unit = "N" if eq == "force balance" else "kg/s"
         out.append(EquationError(eq, unit, np.concatenate(d["err"]), regime, terms))
     return out
+
+
+def without_calibration(err: EquationError) -> EquationError:
+    """The error less what the calibration knobs' shapes explain (least squares on the
+    calibration terms): what no recalibration could remove."""
+    cal = [t.values for t in err.terms if t.calibration]
+    rest = [t for t in err.terms if not t.calibration]
+    e = err.error
+    if cal and e.size > len(cal):
+        x = np.column_stack(cal)
+        coef, *_ = np.linalg.lstsq(x, e, rcond=None)
+        e = e - x @ coef
+    return EquationError(err.equation, err.unit, e, err.regime, rest, err.noise_rms)
 
 
 def sparse_terms(err: EquationError) -> list[dict]:
@@ -269,8 +302,7 @@ def sparse_terms(err: EquationError) -> list[dict]:
             rows.append({"term": term.name, "meaning": term.meaning,
                          "subsystem": term.subsystem,
                          "coefficient": float(coef / term.values.std()),
-                         "share": float(np.mean(col * y) ** 2 / np.mean(y ** 2)
-                                        * np.mean(y ** 2) / total)})
+                         "share": float(np.mean(col * y) ** 2 / total)})
     const = next((t for t, k in zip(err.terms, keep) if not k), None)
     if const is not None:  # the constant term: the error's mean
         rows.append({"term": const.name, "meaning": const.meaning,
@@ -291,17 +323,24 @@ def worst_regime(err: EquationError) -> tuple[str, float] | None:
     return best
 
 
-def locate(data: Prepared, twin: Prepared, params: ModelParams, stroke: float) -> dict:
-    """Where the model's equations leave a gap beyond noise and what shape it has."""
-    errors = equation_errors(data, params, stroke)
-    noise = {e.equation: e.rms for e in equation_errors(twin, params, stroke)}
-    out = {"equations": {}, "beyond_noise": BEYOND_NOISE}
-    for e in errors:
-        e.noise_rms = noise.get(e.equation, 0.0)
+def locate(data: Prepared, twin: Prepared, params: ModelParams,
+           stroke: float) -> tuple[dict, dict[str, EquationError]]:
+    """Where the model's equations leave a gap beyond noise that no recalibration explains,
+    and what shape it has: each equation's error less its calibration-shaped part, against the
+    same on the noise twin. Returns the findings (JSON) and those remainders by equation."""
+    errors = {e.equation: e for e in equation_errors(data, params, stroke)}
+    noise = {e.equation: without_calibration(e).rms
+             for e in equation_errors(twin, params, stroke)}
+    out: dict = {"equations": {}, "beyond_noise": BEYOND_NOISE}
+    remainders = {}
+    for name, full in errors.items():
+        e = without_calibration(full)
+        e.noise_rms = noise.get(name, 0.0)
+        remainders[name] = e
         reg = worst_regime(e)
-        out["equations"][e.equation] = {
-            "unit": e.unit, "rms": e.rms, "noise_rms": e.noise_rms,
-            "over_noise": e.over_noise,
+        out["equations"][name] = {
+            "unit": e.unit, "rms": full.rms, "rms_beyond_calibration": e.rms,
+            "noise_rms": e.noise_rms, "over_noise": e.over_noise,
             "terms": sparse_terms(e) if e.over_noise >= BEYOND_NOISE else [],
             "worst_regime": {"regime": reg[0], "rms_over_overall": reg[1]} if reg else None}
     ranked = sorted(out["equations"].items(), key=lambda kv: -kv[1]["over_noise"])
@@ -313,7 +352,7 @@ def locate(data: Prepared, twin: Prepared, params: ModelParams, stroke: float) -
                           "regime": info["worst_regime"]}
     else:
         out["missing"] = None
-    return out
+    return out, remainders
 
 
 def describe(located: dict) -> str:

@@ -49,7 +49,10 @@ from distributed import as_completed
 
 from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.diagnosis.cluster import Cluster
-from jetpipe_ros.diagnosis.diagnose import VISIBLE, diagnose
+from jetpipe_ros.diagnosis.data import prepare
+from jetpipe_ros.diagnosis.diagnose import diagnose
+from jetpipe_ros.diagnosis.verdict import NOISE_GAP
+from jetpipe_ros.fileio import to_json, write_files, write_text
 from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError, simulate
 from jetpipe_ros.model.params import end_stop_volumes
 from jetpipe_ros.plant import REAL_EFFECTS, PlantSpec
@@ -270,21 +273,23 @@ def make_cases(n: int, seed: int, deviate: bool = True, source: str = "plant") -
 
 def signature(a: ModelParams | PlantSpec, b: ModelParams | PlantSpec,
               dataset_dir: Path) -> float:
-    """Noise-free difference between models (or plants) ``a`` and ``b`` on the dataset's
-    commands, as a fraction of the sensor noise variance (signals averaged)."""
+    """The gap [%] between models (or plants) ``a`` and ``b`` on the dataset's commands, noise
+    free: the diagnosis's gap metric (RMS over signals of the difference over each signal's
+    spread in the dataset) of their open-loop responses. Below :data:`verdict.NOISE_GAP` the
+    difference cannot show beyond noise, and ``none`` is a right answer."""
     ds = read_dataset(dataset_dir)
-    nominal = ModelParams()
-    sigma = {"y": nominal["sensors.position_sigma"], "p1": nominal["sensors.pressure_sigma"],
-             "p2": nominal["sensors.pressure_sigma"]}
-    ratios = []
+    scale = prepare(ds).scale
+    sums = {s: 0.0 for s in ("y", "p1", "p2")}
+    counts = {s: 0 for s in sums}
     for entry, exp in ds:
         changes = {"mechanics.locked": entry.locked, "sensors.noise": False}
         ta, tb = (simulate_plant(m.with_values(changes), exp.u) if isinstance(m, PlantSpec)
                   else simulate(m.with_values(changes), exp.u) for m in (a, b))
         for s in (("p1", "p2") if entry.locked else ("y", "p1", "p2")):
             d = getattr(ta, f"{s}_meas") - getattr(tb, f"{s}_meas")  # as the sensors read them
-            ratios.append(float(np.mean(d ** 2)) / sigma[s] ** 2)
-    return float(np.mean(ratios))
+            sums[s] += float(np.sum((d / scale[s]) ** 2))
+            counts[s] += d.size
+    return 100.0 * float(np.sqrt(np.mean([sums[s] / counts[s] for s in sums if counts[s]])))
 
 
 def record(truth: ModelParams | PlantSpec, root: Path, seed: int) -> None:
@@ -304,18 +309,6 @@ class SelfcheckError(ParameterError):
     cases failed; the message names the directory and what to do."""
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    """Write ``path`` whole or not at all (a temporary file beside it, then renamed)."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def run_case(case: Case, make_dataset: Callable[[ModelParams | PlantSpec, Path, int], None],
              cases_dir: str | None) -> Case:
     """Record ``case``'s dataset in a temporary directory, diagnose it blind (its fits in this
@@ -331,12 +324,12 @@ def run_case(case: Case, make_dataset: Callable[[ModelParams | PlantSpec, Path, 
         make_dataset(truth.with_values({"sensors.noise": True,
                                         "sensors.seed": case.seed % 100000}), data, case.seed)
         bench = case.bench()
-        case.visible = not case.effects or signature(truth, bench, data) >= VISIBLE
+        case.visible = not case.effects or signature(truth, bench, data) >= NOISE_GAP
         nominal = PlantSpec() if case.source == "plant" else ModelParams()
-        case.deviated = bool(case.deviations) and signature(bench, nominal, data) >= VISIBLE
+        case.deviated = bool(case.deviations) and signature(bench, nominal, data) >= NOISE_GAP
         out = (Path(cases_dir) if cases_dir else work / "out") / name
         result = diagnose(data, out, workers=1, quiet=True)
-        _write_atomic(out / "truth.yaml", _truth_yaml(truth))
+        write_text(out / "truth.yaml", _truth_yaml(truth))
         v = result["verdict"]
         case.verdict, case.verdict_params = v["effect"], v["params"]
         case.verdict_subsystem = v["subsystem"]
@@ -349,8 +342,7 @@ def run_case(case: Case, make_dataset: Callable[[ModelParams | PlantSpec, Path, 
         case.shrinkage = result["gap"]["shrinkage"]
         case.seconds = time.perf_counter() - t0
         if cases_dir:
-            _write_atomic(out / RESULT, json.dumps(dataclasses.asdict(case), indent=1,
-                                                   default=lambda x: np.asarray(x).tolist()))
+            write_text(out / RESULT, to_json(dataclasses.asdict(case), indent=1))
     finally:
         shutil.rmtree(work, ignore_errors=True)
     return case
@@ -374,7 +366,7 @@ def _configuration(cases_dir: Path, config: dict, restart: bool) -> dict[int, Ca
     cases_dir.mkdir(parents=True, exist_ok=True)
     for stale in cases_dir.glob(".case*"):  # outputs a stopped run was writing
         shutil.rmtree(stale, ignore_errors=True)
-    _write_atomic(stored, json.dumps(config, indent=1))
+    write_text(stored, to_json(config, indent=1))
     done = {}
     for path in sorted(cases_dir.glob(f"case*/{RESULT}")):
         case = Case(**json.loads(path.read_text()))
@@ -455,8 +447,8 @@ def run_selfcheck(n: int, seed: int,
     summary["ran_on"] = str(cluster)
     if out_dir is not None:
         out_dir.mkdir(parents=True, exist_ok=True)
-        _write_atomic(out_dir / "selfcheck.json", json.dumps(summary, indent=2))
-        _write_atomic(out_dir / "selfcheck.md", render(summary))
+        write_files({out_dir / "selfcheck.json": to_json(summary) + "\n",
+                     out_dir / "selfcheck.md": render(summary)})
         shrinkage_figure(summary, out_dir / SHRINKAGE_PNG)
     return summary
 

@@ -1,32 +1,25 @@
-"""``jetpipe identify DATASET_DIR --out params.yaml``: the paper's procedures on a dataset."""
+"""``jetpipe identify DATASET_DIR --out params.yaml``: the paper's procedures on a dataset.
+
+Both outputs (the parameter YAML and the HTML report) are checked before the work and written
+together at the end: both or, on an error, neither.
+"""
 
 from __future__ import annotations
 
-import os
-import tempfile
-from pathlib import Path
-
-
-def write_atomically(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file renamed into place."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as handle:
-            handle.write(text)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
 
 def _run(args) -> int:
+    from jetpipe_ros import fileio
     from jetpipe_ros.dataset import DatasetError, read_dataset
     from jetpipe_ros.identify.identify import PROCEDURES, identify
     from jetpipe_ros.identify.report import html_report, summary
     from jetpipe_ros.model import ModelParams, load_params
+    from jetpipe_ros.model.limits import Limits
 
+    out = fileio.output_file(args.out, "--out")
+    report = fileio.output_file(args.report if args.report is not None
+                                else out.with_suffix(".report.html"), "--report")
+    if out.resolve() == report.resolve():
+        raise fileio.FileError(f"--report: {report} is also --out; give another file")
     base = load_params(args.params) if args.params else ModelParams()
     if args.procedures:
         chosen = [p.strip() for p in args.procedures.split(",") if p.strip()]
@@ -37,14 +30,11 @@ def _run(args) -> int:
         required = chosen
     else:
         chosen, required = list(PROCEDURES), []
-    ident = identify(read_dataset(args.dataset), base, chosen, required)
-    out = Path(args.out)
-    report = Path(args.report) if args.report else out.with_suffix(".report.html")
+    data = read_dataset(args.dataset, limits=Limits.from_params(base))
+    ident = identify(data, base, chosen, required)
     text = summary(ident)
     header = "".join(f"# {line}\n" for line in text.splitlines())
-    page = html_report(ident)
-    write_atomically(out, header + ident.params.to_ros_yaml())
-    write_atomically(report, page)
+    fileio.write_files({out: header + ident.params.to_ros_yaml(), report: html_report(ident)})
     print(text)
     print(f"parameters -> {out}\nreport -> {report}")
     return 0

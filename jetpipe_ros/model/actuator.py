@@ -55,7 +55,7 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
     return kernel.Constants(
         dt=dt, substeps=substeps, u_limit=p["valve.command_limit"],
         valve_a=valve.a, valve_b=valve.b, valve_c=valve.c, valve_d=valve.d,
-        delay_steps=valve.delay_steps,
+        delay_steps=valve.delay_steps, delay_fraction=valve.delay_fraction,
         hysteresis=hysteresis,
         flow_coef=np.array(p["flow.coefficients"], dtype=float),
         gain_charge=p["flow.gain_charge"], gain_discharge=p["flow.gain_discharge"],
@@ -80,6 +80,8 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
         sigma1=p["effects.friction_dynamics.bristle_damping"],
         sensor_tau=effect("sensor_dynamics", "time_constant", 0.0),
         sensor_bias=effect("sensor_dynamics", "bias", 0.0),
+        sensor_bias_2=effect("sensor_dynamics", "bias_difference", 0.0),
+        sensor_gain=effect("sensor_dynamics", "gain", 0.0),
         sensor_drift=effect("sensor_dynamics", "drift", 0.0),
         sigma_p=p["sensors.pressure_sigma"] if noise else 0.0,
         sigma_y=p["sensors.position_sigma"] if noise else 0.0,
@@ -138,7 +140,7 @@ class Actuator:
         x[kernel.T1] = x[kernel.T2] = p["chamber.temperature"]
         x[kernel.STUCK] = 1.0
         self.state = x
-        self.ring = np.zeros(c.delay_steps + 1)
+        self.ring = np.zeros(c.delay_steps + 2)  # one slot more: a fractional delay reads it
 
     def reconfigure(self, changes: Mapping[str, Any]) -> None:
         """Apply parameter ``changes`` in place, keeping the state, as a test rig's switch does.
@@ -160,13 +162,13 @@ class Actuator:
         constants = build_constants(params)
         state, ring = self.state, self.ring
         size = kernel.VALVE + constants.valve_b.shape[0]
-        if state.shape[0] != size or ring.shape[0] != constants.delay_steps + 1:
+        if state.shape[0] != size or ring.shape[0] != constants.delay_steps + 2:
             kept = state[:kernel.VALVE].copy()
             state = np.zeros(size)
             state[:kernel.VALVE] = kept
             state[kernel.PLAY:kernel.VALVE] = 0.0
             state[kernel.HEAD] = 0.0
-            ring = np.zeros(constants.delay_steps + 1)
+            ring = np.zeros(constants.delay_steps + 2)
         if params["chamber.regulated"] and any(key in changes for key in REGULATOR_KEYS):
             state = state.copy()
             state[kernel.P1] = params["chamber.initial_pressure_1"]

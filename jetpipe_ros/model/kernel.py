@@ -65,7 +65,8 @@ class Constants(NamedTuple):
     valve_b: np.ndarray
     valve_c: np.ndarray
     valve_d: float
-    delay_steps: int  #: valve transport delay [sub-steps]
+    delay_steps: int  #: valve transport delay [whole sub-steps]
+    delay_fraction: float  #: and the fraction of a sub-step beyond them (linear interpolation)
     hysteresis: np.ndarray  #: play thresholds [V], one per element; empty = off
     flow_coef: np.ndarray  #: Eq. 8 coefficients
     gain_charge: float  #: factor on the flow filling a chamber
@@ -94,6 +95,8 @@ class Constants(NamedTuple):
     sigma1: float  #: bristle damping [N s/m]
     sensor_tau: float  #: pressure sensor lag [s], 0 = ideal
     sensor_bias: float  #: pressure sensor bias [Pa]
+    sensor_bias_2: float  #: chamber 2's sensor bias beyond that [Pa]
+    sensor_gain: float  #: relative gain error of the pressure sensors [-]
     sensor_drift: float  #: pressure sensor drift [Pa/s]
     sigma_p: float  #: pressure noise [Pa]
     sigma_y: float  #: position noise [m]
@@ -114,12 +117,13 @@ def measure(c: Constants, x: np.ndarray, noise: np.ndarray, out: np.ndarray) -> 
     out[OUT_UEQ] = x[UEQ]
     out[OUT_Y_MEAS] = x[Y] + c.sigma_y * noise[0]
     offset = c.sensor_bias + c.sensor_drift * t
+    gain = 1.0 + c.sensor_gain
     if c.sensor_tau > 0.0:
-        out[OUT_P1_MEAS] = x[PS1] + offset + c.sigma_p * noise[1]
-        out[OUT_P2_MEAS] = x[PS2] + offset + c.sigma_p * noise[2]
+        out[OUT_P1_MEAS] = gain * x[PS1] + offset + c.sigma_p * noise[1]
+        out[OUT_P2_MEAS] = gain * x[PS2] + offset + c.sensor_bias_2 + c.sigma_p * noise[2]
     else:
-        out[OUT_P1_MEAS] = x[P1] + offset + c.sigma_p * noise[1]
-        out[OUT_P2_MEAS] = x[P2] + offset + c.sigma_p * noise[2]
+        out[OUT_P1_MEAS] = gain * x[P1] + offset + c.sigma_p * noise[1]
+        out[OUT_P2_MEAS] = gain * x[P2] + offset + c.sensor_bias_2 + c.sigma_p * noise[2]
 
 
 #: Largest order of the valve chain: Eq. 4's third order, Eq. 9's lead-lag, the valve_lag effect.
@@ -155,12 +159,16 @@ def _valve_pass(c: Constants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
     head = int(x[HEAD])
     size = ring.shape[0]
     lag = size - c.delay_steps  # the slot delay_steps behind head, ahead of it modulo size
+    frac = c.delay_fraction
     i_out = 0
     for k in range(u.shape[0]):
         for _ in range(c.substeps):
             ring[head] = u[k]
             tail = head + lag
-            u_d = ring[tail - size if tail >= size else tail]
+            tail = tail - size if tail >= size else tail
+            u_d = ring[tail]
+            if frac > 0.0:  # a delay between two sub-steps: interpolated
+                u_d = (1.0 - frac) * u_d + frac * ring[tail - 1 if tail > 0 else size - 1]
             head = head + 1 if head + 1 < size else 0
             u_f = c.valve_d * u_d
             for i in range(VALVE_ORDER):

@@ -17,6 +17,7 @@ from typing import Any
 
 import yaml
 
+from jetpipe_ros.fileio import load_yaml
 from jetpipe_ros.model.chamber import chamber_volumes
 from jetpipe_ros.model.errors import ParameterError
 
@@ -201,6 +202,10 @@ _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
     "sensor_dynamics": [
         _p("time_constant", 0.005, "Pressure sensor first-order lag", "s", 0.0, 1.0),
         _p("bias", 0.0, "Pressure sensor bias", "Pa", -1e5, 1e5),
+        _p("bias_difference", 0.0, "Chamber 2's pressure sensor bias beyond chamber 1's", "Pa",
+           -1e5, 1e5),
+        _p("gain", 0.0, "Relative gain error of the pressure sensors: they read (1 + gain) p",
+           "", -0.2, 0.2),
         _p("drift", 0.0, "Pressure sensor drift rate", "Pa/s", -1e4, 1e4),
     ],
 }
@@ -402,7 +407,7 @@ def load_params(path: str | Path, node_name: str = NODE_NAME,
     """Read and validate a parameter YAML file; errors name the file and the parameter."""
     path = Path(path)
     try:
-        tree = yaml.safe_load(path.read_text())
+        tree = load_yaml(path)
     except OSError as exc:
         raise ParameterError(f"{path}: cannot read parameter file: {exc.strerror}") from exc
     except yaml.YAMLError as exc:

@@ -13,6 +13,8 @@ midpoint characteristic of Eq. 5 read from voltage to position with the sign fli
 
 from __future__ import annotations
 
+import math
+
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
@@ -88,12 +90,15 @@ class DiscreteValve:
     b: np.ndarray  #: input vector (n,)
     c: np.ndarray  #: output vector (n,)
     d: float  #: feed-through
-    delay_steps: int  #: total transport delay in sub-steps
+    delay_steps: int  #: total transport delay, whole sub-steps
+    delay_fraction: float  #: and the fraction of a sub-step beyond them, in [0, 1)
 
 
 def discretise_valve(p: Mapping[str, Any], h: float, extra_lag_hz: float | None = None,
                      extra_delay: float = 0.0) -> DiscreteValve:
-    """Discretise the valve chain at sub-step ``h`` [s]; the delay is rounded to whole sub-steps.
+    """Discretise the valve chain at sub-step ``h`` [s]; the delay in whole sub-steps and a
+    fraction of one (the kernel interpolates the delay line linearly between them, so the
+    delay is continuous: a fit can move it by less than a sub-step).
 
     The result is cached by the chain's parameters and the arguments, so models that differ
     elsewhere (an experiment's initial state, a chamber or friction parameter) share one
@@ -116,6 +121,8 @@ def _discretise(values: tuple[float, ...], h: float, extra_lag_hz: float | None,
     num, den = valve_tf(p, extra_lag_hz)
     a, b, c, d = signal.tf2ss(num, den)
     ad, bd, cd, dd, _ = signal.cont2discrete((a, b, c, d), h, method="zoh")
-    delay_steps = int(round((p["valve.delay"] + extra_delay) / h))
+    steps = (p["valve.delay"] + extra_delay) / h
+    whole = math.floor(steps + 1e-9)  # a delay of whole sub-steps up to round-off stays whole
+    fraction = max(steps - whole, 0.0) if steps - whole > 1e-9 else 0.0
     return DiscreteValve(np.ascontiguousarray(ad), np.ascontiguousarray(bd[:, 0]),
-                         np.ascontiguousarray(cd[0]), float(dd[0, 0]), delay_steps)
+                         np.ascontiguousarray(cd[0]), float(dd[0, 0]), int(whole), fraction)

@@ -21,8 +21,12 @@ Time modes (parameter ``time_mode``):
 Every sample also publishes ``voltage_applied``: the command [V] (joint ``valve``, position) and
 the external load [N] (joint ``load``, effort) held over the sample that ends at its stamp, so a
 recording pairs each measurement with the inputs that produced it whatever the transport delays.
-Messages are applied in the order they arrive (the default EventsExecutor), so a commander that
-publishes a sample's ``load_force`` before its ``voltage_cmd`` gets both on that sample.
+Bad inputs never stop it: a non-finite command or load is ignored (the last one held), a command
+beyond ``valve.command_limit`` and a load beyond 4 x the largest pneumatic force S (p_s - p_atm)
+(:func:`jetpipe_ros.model.limits.load_limit`, 19.6 kN nominal) are clipped, each with a
+throttled warning. Messages are applied in the order they arrive (the default EventsExecutor),
+so a commander that publishes a sample's ``load_force`` before its ``voltage_cmd`` gets both on
+that sample.
 
 Model parameters may be changed at run time (``ros2 param set``, or a test rig's switch such as
 ``mechanics.locked``): the model is rebuilt with the new values and keeps its state.
@@ -52,10 +56,12 @@ from rclpy.time_source import TimeSource
 
 from jetpipe_ros.model import SPECS, Actuator, ModelParams, ParameterError
 from jetpipe_ros.model import kernel as k
+from jetpipe_ros.model.limits import LOAD_FACTOR, load_limit
 from jetpipe_ros.model.params import NODE_NAME, ParamSpec, check_value
 from jetpipe_ros.nodes import interface, process
 from jetpipe_ros.nodes.pacing import Pacer
-from jetpipe_ros.nodes.parameters import StartupError, declare, unknown_overrides, value
+from jetpipe_ros.nodes.parameters import (StartupError, declare, set_explained,
+                                          unknown_overrides, value)
 from jetpipe_ros.package_data import share_file
 
 #: The node's own parameters (the model's are :data:`jetpipe_ros.model.SPECS`).
@@ -107,6 +113,7 @@ class ActuatorSim(Node):
         self._dt = self.actuator.constants.dt
         self._dt_ns = round(self._dt * NS)
         self._limit = params["valve.command_limit"]
+        self._load_limit = load_limit(params)
         self._variance = self.actuator.constants.sigma_p ** 2
         self._sim = opts["time_mode"] == "sim"
         self._lockstep = self._sim and opts["lockstep"]
@@ -206,6 +213,10 @@ class ActuatorSim(Node):
 
     # -- run-time parameters ----------------------------------------------------------------
 
+    def set_parameters_atomically(self, parameter_list: list[Parameter[Any]]) -> Any:
+        """rclpy's, with rejections naming the parameter and the types (remote sets)."""
+        return set_explained(self, parameter_list, super().set_parameters_atomically)
+
     def _check_update(self, params: list[Parameter[Any]]) -> SetParametersResult:
         model = {p.name: _plain(p.value) for p in params if p.name in SPECS}
         if model:
@@ -229,6 +240,7 @@ class ActuatorSim(Node):
         if model:
             self.actuator.reconfigure(model)
             self._limit = self.actuator.params["valve.command_limit"]
+            self._load_limit = load_limit(self.actuator.params)
             self._variance = self.actuator.constants.sigma_p ** 2
             for m in self._msg_p:
                 m.variance = self._variance
@@ -263,12 +275,19 @@ class ActuatorSim(Node):
             self._waiting_since = time.monotonic()
 
     def _on_load(self, msg: Any) -> None:
-        if not math.isfinite(msg.data):
+        f = msg.data
+        if not math.isfinite(f):
             self.get_logger().warning(
-                f"ignoring non-finite load_force {msg.data}; holding {self._f_load:g} N",
+                f"ignoring non-finite load_force {f}; holding {self._f_load:g} N",
                 throttle_duration_sec=WARN_PERIOD)
             return
-        self._f_load = msg.data
+        if abs(f) > self._load_limit:
+            self.get_logger().warning(
+                f"load_force {f:g} N beyond {self._load_limit:g} N ({LOAD_FACTOR:g} x the "
+                f"largest pneumatic force S (p_s - p_atm)); clipped",
+                throttle_duration_sec=WARN_PERIOD)
+            f = math.copysign(self._load_limit, f)
+        self._f_load = f
 
     def _command(self, t: float) -> float:
         """The valve command [V] at node time ``t`` [s], 0 V once the commands stopped."""

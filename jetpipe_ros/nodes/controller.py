@@ -34,7 +34,8 @@ from jetpipe_ros.control import SPECS, Pid, PidConfig
 from jetpipe_ros.model import ParameterError
 from jetpipe_ros.model.params import ParamSpec
 from jetpipe_ros.nodes import interface, process
-from jetpipe_ros.nodes.parameters import StartupError, declare, unknown_overrides, value
+from jetpipe_ros.nodes.parameters import (StartupError, declare, set_explained,
+                                          unknown_overrides, value)
 
 NODE_NAME = "controller"
 NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
@@ -87,6 +88,10 @@ class Controller(Node):
             f"{'enabled' if self.enabled else 'disabled'}")
 
     # -- parameters -------------------------------------------------------------------------
+
+    def set_parameters_atomically(self, parameter_list: list[Parameter[Any]]) -> Any:
+        """rclpy's, with rejections naming the parameter and the types (remote sets)."""
+        return set_explained(self, parameter_list, super().set_parameters_atomically)
 
     def _changed_config(self, params: list[Parameter[Any]]) -> PidConfig | None:
         gains = {p.name: p.value for p in params if p.name in SPECS}

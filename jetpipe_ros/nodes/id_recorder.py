@@ -22,10 +22,24 @@ marked on ``/id_recorder/events`` so ``jetpipe export BAG DATASET_DIR`` can cut 
 The node exits when the campaign is done. ``mode: record`` only records, until stopped.
 
 SIGINT/SIGTERM close the bag cleanly: every message received up to the signal stays readable.
-Dropped messages (gaps in the 1 kHz stamps) are counted and reported with the kept fraction.
+SIGKILL cannot be caught: the bag then lacks ``metadata.yaml`` and the MCAP footer, but the
+writer syncs it at least every second (:data:`jetpipe_ros.bag.writer.SYNC_PERIOD`; also while
+idle, from a timer), so ``jetpipe export`` recovers everything recorded up to about a second
+before the kill. Dropped messages (gaps in the 1 kHz stamps) are counted and reported with the
+kept fraction.
+
+A peer that dies is detected: in a campaign, no new sample for ``peer_timeout`` seconds (wall
+clock) while the simulator still re-publishes its waiting sample means the controller (in a
+closed-loop phase) stopped answering; no ``joint_states`` at all means the simulator stopped.
+In record mode, no ``joint_states`` for ``peer_timeout`` after the stream began means it
+stopped.
+The recorder then logs which peer, marks the running experiment incomplete, closes the bag and
+exits with status 1. A campaign that never started (simulator or controller not found, or
+stopped before) leaves no bag behind, nor does a recording that received nothing.
 
 Run: ``ros2 run jetpipe_ros id_recorder --ros-args -p bag:=bags/run1`` (exit status 2 on bad
-parameters or a bad campaign file, 1 if the simulator or controller cannot be reached).
+parameters, a bad campaign file or a bag that cannot be created, 1 if the simulator or
+controller cannot be reached or stops answering).
 """
 
 from __future__ import annotations
@@ -40,18 +54,21 @@ from pathlib import Path
 from typing import Any
 
 import rclpy
+from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
+from rosbags.rosbag2 import WriterError
 
 from jetpipe_ros.bag import BagWriter
 from jetpipe_ros.campaign import Campaign, CampaignError, Phase, load_campaign
 from jetpipe_ros.model.params import ParamSpec
 from jetpipe_ros.nodes import interface, process
-from jetpipe_ros.nodes.parameters import StartupError, declare, unknown_overrides, value
+from jetpipe_ros.nodes.parameters import (StartupError, declare, set_explained,
+                                          unknown_overrides, value)
 from jetpipe_ros.package_data import PackageDataError, share_file
 
 NODE_NAME = "id_recorder"
@@ -68,6 +85,10 @@ NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
     ParamSpec("controller_node", "controller", "Controller node (same namespace)"),
     ParamSpec("wait_timeout", 30.0, "Longest wait for the simulator and controller", "s",
               0.1, 600.0),
+    ParamSpec("peer_timeout", 5.0, "A running campaign stops (status 1, experiment marked "
+              "incomplete) after this long without a new sample; record mode, without "
+              "joint_states once the stream began (more than the simulator's lockstep_kick)", "s",
+              0.5, 3600.0),
     ParamSpec("sample_time", 0.001, "Period of the stamped streams (gap counting)", "s",
               1e-5, 1.0),
     ParamSpec("lead", 4, "Open-loop phases: commands sent ahead of the samples (pipelining; "
@@ -76,6 +97,9 @@ NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
               "messages", 10, 100000),
 ]}
 NS = 1_000_000_000
+#: A kick of the sample answered last is taken as a lost command only this long [s, wall]
+#: after the answer (the simulator kicks every lockstep_kick, 0.2 s by default).
+KICK_GUARD = 0.1
 #: Message types whose CDR payload starts with a time stamp (header.stamp or clock).
 STAMPED = ("sensor_msgs/msg/FluidPressure", "sensor_msgs/msg/JointState",
            "rosgraph_msgs/msg/Clock")
@@ -106,20 +130,26 @@ class Recorder(Node):
             except CampaignError as exc:
                 raise StartupError([str(exc)]) from exc
         self._dt_ns = round(self.opts["sample_time"] * NS)
-        bag = self.opts["bag"] or f"bags/campaign_{datetime.now():%Y%m%d_%H%M%S}"
+        bag = self.opts["bag"].strip() or f"bags/campaign_{datetime.now():%Y%m%d_%H%M%S}"
         if Path(bag).exists():
             raise StartupError([f"parameter bag: {bag} exists; give a new directory"])
-        Path(bag).parent.mkdir(parents=True, exist_ok=True)
 
         topics = interface.load_topics()
         self._names = {t.name: self.resolve_topic_name(t.name) for t in topics.values()}
-        self.bag = BagWriter(bag, {self._names[t.name]: t.type for t in topics.values()},
-                             self.opts["bag_version"])
+        try:
+            self.bag = BagWriter(bag, {self._names[t.name]: t.type for t in topics.values()},
+                                 self.opts["bag_version"])
+        except (OSError, WriterError) as exc:
+            where = exc.filename if isinstance(exc, OSError) and exc.filename else bag
+            why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+            raise StartupError([f"parameter bag: cannot create {bag}: {where}: {why}"]) from None
         self._now_ns = 0  # latest stamp seen [ns, simulated]
         self._last: dict[str, int] = {}  # latest stamp per stamped topic
         self._first: dict[str, int] = {}
         self.dropped: dict[str, int] = {}
-        self.duplicates = 0
+        self.heard: float | None = None  # wall time [s] of the latest joint_states message
+        self.progressed = time.monotonic()  # wall time [s] of the latest new sample
+        self.failure: str | None = None  # why the recording stopped early (a peer died)
         depth = QoSProfile(depth=self.opts["queue_depth"], history=HistoryPolicy.KEEP_LAST,
                            reliability=ReliabilityPolicy.RELIABLE)
         for t in topics.values():
@@ -135,6 +165,9 @@ class Recorder(Node):
         self._index = 0  # current phase
         self._start_ns: int | None = None  # stamp of the current phase's first sample
         self._answered = -1  # latest stamp answered [ns]
+        self._answered_at = 0.0  # when [s, monotonic]
+        self._kicks = 0  # kicks of the sample answered last since the answer
+        self.resent = 0  # answers sent again because the simulator still waited
         self._sent = -1  # highest row of the current phase whose command was sent
         self._held: int | None = None  # a sample waiting while the rig is switched
         self._busy = False  # a parameter change is in flight
@@ -148,10 +181,15 @@ class Recorder(Node):
         self.sim_start_ns: int | None = None
         self._sim_params = AsyncParameterClient(self, self.opts["simulator_node"])
         self._ctl_params = AsyncParameterClient(self, self.opts["controller_node"])
+        self.create_timer(0.1, self._watch, clock=Clock(clock_type=ClockType.STEADY_TIME))
         what = (f"campaign {self.campaign.source}: {len(self.campaign.experiments)} "
                 f"experiments, {self.campaign.total_duration():.1f} s simulated"
                 if self.campaign else "record only")
         self.get_logger().info(f"started: {what}; bag {self.bag.path}")
+
+    def set_parameters_atomically(self, parameter_list: list[Parameter[Any]]) -> Any:
+        """rclpy's, with rejections naming the parameter and the types (remote sets)."""
+        return set_explained(self, parameter_list, super().set_parameters_atomically)
 
     # -- recording --------------------------------------------------------------------------
 
@@ -162,12 +200,15 @@ class Recorder(Node):
             if self.bag.closed:
                 return
             stamp = stamp_of(data)
+            if is_joint_states:  # the simulator's own (/clock may come from anyone)
+                self.heard = time.monotonic()
             last = self._last.get(name)
             if last is not None and stamp <= last:  # re-published while the sim waits
-                self.duplicates += 1
                 if is_joint_states and self.driving:
                     self._on_kick(stamp)
                 return
+            if is_joint_states:
+                self.progressed = self.heard
             if last is None:
                 self._first[name] = stamp
             elif stamp - last > self._dt_ns:
@@ -187,6 +228,44 @@ class Recorder(Node):
             if not self.bag.closed:
                 self.bag.write(name, self._now_ns, data)
         return callback
+
+    def _watch(self) -> None:
+        """Every 0.1 s (wall clock): sync the bag if due; stop if a peer stopped answering."""
+        if self.bag.closed:
+            return
+        self.bag.sync_if_due()
+        if self.failure is not None:
+            return
+        now = time.monotonic()
+        timeout = self.opts["peer_timeout"]
+        sim, js = self.opts["simulator_node"], self._names["joint_states"]
+        if self.driving:
+            if now - max(self.heard or 0.0, self.progressed) > timeout:
+                self._fail(f"simulator {sim} stopped publishing: nothing on {js} for "
+                           f"{timeout:g} s (killed or hung?)")
+            elif now - self.progressed > timeout:
+                phase = self._phases[self._index]
+                if self._busy:
+                    what = (f"simulator {sim} did not complete a rig switch (parameter "
+                            f"change) within {timeout:g} s")
+                elif phase.command.closed_loop:
+                    self._paced = False  # nobody left to give its pace back to
+                    what = (f"controller {self.opts['controller_node']} stopped answering: "
+                            f"the simulator waits for its voltage_cmd, no new sample for "
+                            f"{timeout:g} s (killed or hung?)")
+                else:
+                    what = (f"simulator {sim} publishes but takes no voltage_cmd: no new "
+                            f"sample for {timeout:g} s")
+                self._fail(what)
+        elif self.campaign is None and self.heard is not None and now - self.heard > timeout:
+            self._fail(f"the stream stopped: nothing on {js} for {timeout:g} s (simulator "
+                       f"{sim} killed or hung?)")
+
+    def _fail(self, why: str) -> None:
+        """A peer died: record why and end the run (the caller closes the bag)."""
+        self.failure = why
+        if not self.finished.done():
+            self.finished.set_result(None)
 
     @property
     def driving(self) -> bool:
@@ -217,7 +296,8 @@ class Recorder(Node):
         self.get_logger().info(
             f"recorded {kept} of {expected} joint_states samples (kept {100 * fraction:.3f} "
             f"%), dropped: {drops}; {sim:.2f} s simulated in {wall:.2f} s wall "
-            f"({sim / max(wall, 1e-9):.2f} x real time); bag {self.bag.path}")
+            f"({sim / max(wall, 1e-9):.2f} x real time); answers re-sent {self.resent}; bag "
+            f"{self.bag.path}")
 
     # -- start-up ---------------------------------------------------------------------------
 
@@ -252,13 +332,17 @@ class Recorder(Node):
         self._set(self._sim_params, "mechanics.locked", False, spin)
         self._set(self._sim_params, "chamber.regulated", False, spin)
         self._rig = {"mechanics.locked": False, "chamber.regulated": False}
-        self.wall_start = time.monotonic()
+        self.wall_start = self.progressed = time.monotonic()
         self.ready = True
         self.get_logger().info("simulator found; campaign running")
 
     def _set(self, client: AsyncParameterClient, name: str, v: Any, spin) -> None:
         future = client.set_parameters([Parameter(name, value=v)])
+        deadline = time.monotonic() + self.opts["wait_timeout"]
         while not future.done():
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"cannot set {name} = {v}: no answer within "
+                                   f"{self.opts['wait_timeout']:g} s")
             spin(0.05)
         result = future.result().results[0]
         if not result.successful:
@@ -267,10 +351,23 @@ class Recorder(Node):
     # -- the campaign -----------------------------------------------------------------------
 
     def _on_kick(self, stamp: int) -> None:
-        """The simulator re-published a sample: it is still waiting for its command."""
+        """The simulator re-published a sample: it is still waiting for its command.
+
+        A kick of the sample answered last may have been sent before the answer reached the
+        simulator (a stall longer than the simulator's ``lockstep_kick``: of the recorder, which
+        then finds the kicks queued behind the sample it answers, or of a process hosting both,
+        whose kick timer fires once before the queued commands are taken): answering it again
+        would step the simulator twice. So the answer is sent again only at the second kick
+        after it and at least :data:`KICK_GUARD` after it; a lost answer costs two kick periods.
+        """
         if stamp > self._answered:
             self._on_sample(stamp)
-        elif stamp == self._answered and not self._busy and self._start_ns is not None:
+            return
+        if stamp == self._answered:
+            self._kicks += 1
+        if (stamp == self._answered and not self._busy and self._start_ns is not None
+                and self._kicks >= 2 and time.monotonic() - self._answered_at >= KICK_GUARD):
+            self.resent += 1
             # The simulator lacks this sample's command (a race at a switch): send it again.
             self._sent = (stamp - self._start_ns) // self._dt_ns - 1
             self._answered = stamp - 1
@@ -311,6 +408,8 @@ class Recorder(Node):
                 self._publish("voltage_cmd", float(cmd.voltage[r]))
             self._sent = max(self._sent, last)
         self._answered = stamp
+        self._answered_at = time.monotonic()
+        self._kicks = 0
 
     def _publish(self, name: str, v: float) -> None:
         self._msg.data = v
@@ -372,11 +471,23 @@ class Recorder(Node):
             self.get_logger().info("campaign done")
 
     def close(self) -> None:
-        """Mark an interrupted experiment, report, close the bag (idempotent)."""
+        """Mark an interrupted experiment, report, close the bag (idempotent). A campaign that
+        never started, or a recording that received nothing, leaves no bag."""
         if self.bag.closed:
             return
+        started = self.ready if self.campaign is not None else any(self.bag.counts.values())
+        if not started:
+            self.bag.discard()
+            self.get_logger().info(f"nothing recorded; bag {self.bag.path} not kept")
+            return
         if self.campaign is not None and not self.done and self._index < len(self._phases):
-            self._finish(self._phases[self._index], complete=False)
+            phase = self._phases[self._index]
+            self._finish(phase, complete=False)
+            what = (f"experiment {phase.label} marked incomplete" if phase.experiment is not None
+                    else "between experiments")
+            self.get_logger().warning(
+                f"campaign incomplete: stopped in phase {phase.label} ({self._index + 1} of "
+                f"{len(self._phases)}), {what}")
         self.report()
         self.bag.close()
 
@@ -418,6 +529,8 @@ def run(node: Recorder, executor: Any, stop: process.Stop) -> int:
         if node.campaign is not None:
             node.connect(spin_once)
         process.spin(executor, stop, until=node.finished)
+        if node.failure is not None:
+            raise RuntimeError(node.failure)
         if node.done:  # the last sample's other topics are still on the way: wait up to 1 s
             drain = time.monotonic() + 1.0
             process.spin(executor, stop,

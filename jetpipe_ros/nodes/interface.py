@@ -17,6 +17,7 @@ from typing import Any
 
 import yaml
 
+from jetpipe_ros.fileio import load_yaml
 from jetpipe_ros.package_data import share_file
 
 CONTRACT = "msg_defs/topics.yaml"
@@ -69,7 +70,7 @@ class Topic:
 
 def _parse(path: Path) -> dict[str, Topic]:
     try:
-        doc = yaml.safe_load(path.read_text())
+        doc = load_yaml(path)
         profiles = {key: Qos(**spec) for key, spec in doc["qos"].items()}
         topics = {}
         for entry in doc["topics"]:

@@ -3,7 +3,10 @@
 Each parameter gets a ``ParameterDescriptor`` with its description, unit and range, so
 ``ros2 param describe`` shows them and rclpy refuses out-of-range values. Start-up problems
 (wrong type, out of range, unknown name) are collected, not raised one by one, so a node can
-report every bad parameter of a file at once.
+report every bad parameter of a file at once. At run time (``ros2 param set``),
+:func:`set_explained` widens integers given for floating-point parameters, as start-up does, and
+words rclpy's terse refusals ("expected '3' got '2'", "undeclared parameter(s): []") so that
+they name the parameter and the types.
 """
 
 from __future__ import annotations
@@ -12,7 +15,8 @@ import array
 from collections.abc import Iterable
 from typing import Any
 
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                SetParametersResult)
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -104,6 +108,42 @@ _KIND_NAMES = {bool: "true or false", int: "an integer", float: "a number", str:
 
 def _shown(v: Any) -> str:
     return repr(list(v) if isinstance(v, array.array) else v)
+
+
+#: What each rclpy parameter type is, in words.
+TYPE_NAMES = {
+    Parameter.Type.NOT_SET: "no value", Parameter.Type.BOOL: "a bool (true or false)",
+    Parameter.Type.INTEGER: "an integer", Parameter.Type.DOUBLE: "a floating-point number",
+    Parameter.Type.STRING: "a string", Parameter.Type.BYTE_ARRAY: "a byte array",
+    Parameter.Type.BOOL_ARRAY: "a list of bools", Parameter.Type.INTEGER_ARRAY:
+    "a list of integers", Parameter.Type.DOUBLE_ARRAY: "a list of floating-point numbers",
+    Parameter.Type.STRING_ARRAY: "a list of strings"}
+
+
+def set_explained(node: Node, parameters: list[Parameter[Any]], setter: Any) -> Any:
+    """Set ``parameters`` on ``node`` through ``setter`` (rclpy's ``set_parameters_atomically``)
+    after widening integers given for floating-point parameters; an undeclared name or a wrong
+    type gets a result naming the parameter and the expected and given types instead."""
+    widened = []
+    for p in parameters:
+        if not node.has_parameter(p.name):
+            return SetParametersResult(successful=False, reason=(
+                f"node {node.get_name()} has no parameter {p.name!r} (ros2 param list shows "
+                f"them)"))
+        descriptor = node.describe_parameter(p.name)
+        want = Parameter.Type(descriptor.type)
+        if descriptor.dynamic_typing or p.type_ in (want, Parameter.Type.NOT_SET):
+            widened.append(p)
+        elif want == Parameter.Type.DOUBLE and p.type_ == Parameter.Type.INTEGER:
+            widened.append(Parameter(p.name, Parameter.Type.DOUBLE, float(p.value)))
+        elif want == Parameter.Type.DOUBLE_ARRAY and p.type_ == Parameter.Type.INTEGER_ARRAY:
+            widened.append(Parameter(p.name, Parameter.Type.DOUBLE_ARRAY,
+                                     [float(v) for v in p.value]))
+        else:
+            return SetParametersResult(successful=False, reason=(
+                f"parameter {p.name}: expected {TYPE_NAMES.get(want, want.name)}, got "
+                f"{TYPE_NAMES.get(p.type_, p.type_.name)} ({_shown(p.value)})"))
+    return setter(widened)
 
 
 def unknown_overrides(node: Node, known: Iterable[str]) -> list[str]:

@@ -1,7 +1,9 @@
 """Process plumbing shared by the executables: signals, ROS start-up, spinning, start-up errors.
 
 Each executable installs its own SIGINT/SIGTERM handlers (they set an event the spin loop
-watches), so it can finish its work (log totals, close a bag) before ROS shuts down.
+watches), so it can finish its work (log totals, close a bag) before ROS shuts down. Parameter
+files given with ``--params-file`` are checked for keys given twice first (rcl would keep the
+last one silently), with the tools' YAML reader (:func:`jetpipe_ros.fileio.load_yaml`).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 
+from jetpipe_ros.fileio import DuplicateKeyError, load_yaml
 from jetpipe_ros.nodes.parameters import StartupError
 
 #: Longest a spin call blocks [s]: the stop event and the exit condition are checked this often.
@@ -62,6 +65,10 @@ def start(name: str, args: Sequence[str] | None) -> Stop | None:
     Returns None, after printing why on stderr, if ROS refuses the arguments (a bad
     ``--ros-args`` or a params file it cannot parse).
     """
+    problem = check_params_files(sys.argv if args is None else args)
+    if problem:
+        print(f"{name}: error: {problem}", file=sys.stderr)
+        return None
     stop = Stop()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
@@ -71,6 +78,20 @@ def start(name: str, args: Sequence[str] | None) -> Stop | None:
         print(f"{name}: error: cannot initialise ROS: {exc}", file=sys.stderr)
         return None
     return stop
+
+
+def check_params_files(args: Sequence[str]) -> str | None:
+    """Why a ``--params-file`` among ``args`` is refused (a key given twice), or None. Other
+    problems (a missing or malformed file) are left to rcl, which reports them."""
+    for flag, path in zip(args, args[1:]):
+        if flag == "--params-file":
+            try:
+                load_yaml(path)
+            except DuplicateKeyError as exc:
+                return f"{path}: {exc}"
+            except Exception:  # noqa: BLE001 - rcl reports what it cannot read
+                continue
+    return None
 
 
 def spin(executor: Any, stop: Stop, until: Future | None = None,

@@ -170,6 +170,11 @@ def _mechanics(c: PlantConstants, x: np.ndarray, f_load: float, h: float) -> Non
         y_new = math.copysign(c.y_max, y_new)
         w = 0.0
         stuck = True
+        if c.bristles:
+            # Against the stop the bristles deflect only by the distance the piston really
+            # moved (elastically: at rest nothing flows); the stop takes the rest of the force.
+            z = x[Z] + (y_new - y)
+            friction = c.sigma0 * z
     x[Y] = y_new
     x[V] = w
     x[STUCK] = 1.0 if stuck else 0.0
