@@ -18,7 +18,8 @@ setup(
     ],
     # rclpy and the ROS messages come from the ROS install or requirements-ros.txt.
     install_requires=["numpy", "scipy", "numba", "pyyaml", "matplotlib", "rosbags",
-                      "threadpoolctl", "scikit-learn"],
+                      "threadpoolctl", "scikit-learn", "dask", "distributed",
+                      "statsmodels"],
     python_requires=">=3.10",
     zip_safe=True,
     maintainer="jetpipe_ros developers",

@@ -116,7 +116,8 @@ def test_small_selfcheck_scores_the_diagnosis(tmp_path, monkeypatch):
     monkeypatch.setitem(selfcheck.KINDS, "model", ("none", "valve_lag"))
     lines = []
     summary = selfcheck.run_selfcheck(2, seed=2, make_dataset=build, out_dir=tmp_path,
-                                      progress=lines.append, deviate=False, source="model")
+                                      progress=lines.append, deviate=False, source="model",
+                                      workers=1)  # in this process: `written` sees the cases
     assert [r["verdict"] for r in summary["results"]] == ["none", "valve_lag"]
     assert summary["top1_accuracy"] == 1.0 and summary["none_correct"]
     lag = summary["results"][1]
@@ -132,7 +133,8 @@ def test_small_selfcheck_scores_the_diagnosis(tmp_path, monkeypatch):
     # A delay in the plant's continuous form (not quantised to the model's sub-steps).
     monkeypatch.setitem(selfcheck.KINDS, "plant", ("transport_delay",))
     plant = selfcheck.run_selfcheck(1, seed=5, make_dataset=build, out_dir=tmp_path / "plant",
-                                    progress=lines.append, deviate=False, source="plant")
+                                    progress=lines.append, deviate=False, source="plant",
+                                    workers=1)
     (r,) = plant["results"]
     assert r["verdict"] == "valve_delay" and r["correct"]
     assert r["params"]["delay"] == pytest.approx(r["effects"]["transport_delay"]["delay"],

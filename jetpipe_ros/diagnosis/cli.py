@@ -8,13 +8,19 @@ from jetpipe_ros.arguments import positive_int
 
 
 def _diagnose(args: argparse.Namespace) -> int:
-    from jetpipe_ros.diagnosis.diagnose import diagnose
+    from jetpipe_ros.diagnosis.fleet import dataset_dirs
     from jetpipe_ros.fileio import output_dir
     from jetpipe_ros.model import ModelParams, load_params
 
     output_dir(args.out, "--out")  # before the work
     params = load_params(args.params) if args.params else ModelParams()
-    result = diagnose(args.dataset, args.out, params, workers=args.jobs, quiet=args.quiet)
+    dirs, is_fleet = dataset_dirs(args.dataset)
+    if is_fleet:
+        return _fleet(args, dirs, params)
+    from jetpipe_ros.diagnosis.diagnose import diagnose
+
+    result = diagnose(dirs[0], args.out, params, workers=args.jobs, quiet=args.quiet,
+                      scheduler=args.scheduler)
     v, g = result["verdict"], result["gap"]
     print(f"verdict: {v['effect']} (subsystem {v['subsystem']}, confidence "
           f"{v['confidence']:.2f})")
@@ -22,6 +28,28 @@ def _diagnose(args: argparse.Namespace) -> int:
           f"{g['augmented']:.2f} %, shrinkage {100 * g['shrinkage']:.0f} %")
     print(f"report: {args.out}/report.html  augmented model: {args.out}/augmented.yaml")
     return 0
+
+
+def _fleet(args: argparse.Namespace, dirs, params) -> int:
+    import sys
+
+    from jetpipe_ros.diagnosis.fleet import run_fleet
+
+    progress = (lambda line: None) if args.quiet else (
+        lambda line: print(line, file=sys.stderr, flush=True))
+    fleet = run_fleet(dirs, args.out, params, workers=args.jobs, scheduler=args.scheduler,
+                      progress=progress)
+    print(f"{fleet['datasets']} datasets: {fleet['succeeded']} diagnosed, {fleet['failed']} "
+          f"failed")
+    for r in fleet["actuators"]:
+        if r["status"] == "ok":
+            print(f"  {r['name']}: {r['verdict']['effect']} (confidence "
+                  f"{r['verdict']['confidence']:.2f}), held-out gap {r['gap']['nominal']:.2f} "
+                  f"-> {r['gap']['augmented']:.2f} %")
+        else:
+            print(f"  {r['name']}: failed: {r['error']}")
+    print(f"fleet: {args.out}/fleet.html  {args.out}/fleet.json  (one folder per dataset)")
+    return 0 if fleet["failed"] == 0 else 1
 
 
 def campaign_dataset(params, root, seed: int) -> None:
@@ -39,12 +67,16 @@ def _selfcheck(args: argparse.Namespace) -> int:
 
     output_dir(args.out, "--out")  # before the work
     summary = run_selfcheck(args.cases, args.seed, out_dir=Path(args.out), workers=args.jobs,
-                            deviate=args.deviations, source=args.truth)
+                            deviate=args.deviations, source=args.truth,
+                            scheduler=args.scheduler, restart=args.restart)
+    lo, hi = summary["top1_interval"]
     print(f"\n{summary['cases']} cases in {summary['seconds']:.0f} s: top-1 accuracy "
-          f"{100 * summary['top1_accuracy']:.0f} %, none correct: "
+          f"{100 * summary['top1_accuracy']:.0f} % ({100 * lo:.0f}-{100 * hi:.0f} %, "
+          f"{100 * summary['confidence_level']:.0f} % Wilson interval), none correct: "
           f"{'yes' if summary['none_correct'] else 'no'}, median held-out shrinkage "
           f"{100 * (summary['median_shrinkage'] or 0):.0f} %")
-    print(f"confusion matrix and parameter recovery: {args.out}/selfcheck.md")
+    print(f"accuracy per effect, confusion matrix, shrinkage, parameter recovery: "
+          f"{args.out}/selfcheck.md")
     return 0
 
 
@@ -54,12 +86,20 @@ def add_command(subparsers) -> None:
         "diagnose", help="find where the model departs from a dataset and which effect causes it",
         description="Fit every unmodelled effect on the training experiments of DATASET_DIR, "
                     "judge them on the held-out ones, and write diagnosis.json, report.html and "
-                    "augmented.yaml to OUT_DIR.")
-    p.add_argument("dataset", metavar="DATASET_DIR", help="dataset directory (dataset.yaml)")
+                    "augmented.yaml to OUT_DIR (to OUT_DIR/<dataset name>/ for several "
+                    "datasets, with fleet.json and fleet.html).")
+    p.add_argument("dataset", metavar="DATASET_DIR", nargs="+",
+                   help="dataset directory (dataset.yaml); several, or a quoted glob, diagnose "
+                        "a fleet: one folder of outputs each in OUT_DIR, plus fleet.json and "
+                        "fleet.html (exit status 1 if any dataset failed)")
     p.add_argument("--out", required=True, metavar="OUT_DIR", help="output directory")
     p.add_argument("--params", help="nominal model parameter YAML (default: DESIGN.md s.2)")
     p.add_argument("--jobs", type=positive_int, default=2,
-                   help="parallel fitting processes (default 2)")
+                   help="worker processes of the local Dask cluster (default 2; 1: in this "
+                        "process); ignored with --scheduler")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="Dask scheduler to run on, e.g. tcp://host:8786 (default: the "
+                        "DASK_SCHEDULER_ADDRESS environment variable, else a local cluster)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=_diagnose)
     c = subparsers.add_parser(
@@ -72,7 +112,16 @@ def add_command(subparsers) -> None:
     c.add_argument("--seed", type=int, default=0, help="seed of sizes and noise (default 0)")
     c.add_argument("--out", default="out/selfcheck", help="where selfcheck.md/json go")
     c.add_argument("--jobs", type=positive_int, default=2,
-                   help="parallel fitting processes (default 2)")
+                   help="worker processes of the local Dask cluster, one case each at a time "
+                        "(default 2; 1: in this process); ignored with --scheduler")
+    c.add_argument("--scheduler", metavar="ADDRESS",
+                   help="Dask scheduler to run the cases on, e.g. tcp://host:8786 (default: "
+                        "the DASK_SCHEDULER_ADDRESS environment variable, else a local "
+                        "cluster)")
+    c.add_argument("--restart", action="store_true",
+                   help="discard the cases an earlier run left in OUT (by default a run with "
+                        "the same --cases, --seed, --truth, --deviations resumes them, and "
+                        "another configuration is refused)")
     c.add_argument("--truth", choices=("plant", "model"), default="plant",
                    help="where the data come from: the plant written apart from the candidates "
                         "(default), or the simulator's own effects")

@@ -17,7 +17,6 @@ complete.
 from __future__ import annotations
 
 import dataclasses
-import os
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -30,6 +29,7 @@ from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.diagnosis import calibration
 from jetpipe_ros.diagnosis.calibration import CALIBRATION
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate, effect_of
+from jetpipe_ros.diagnosis.cluster import Cluster
 from jetpipe_ros.diagnosis.data import SIGNALS, Prepared, prepare, swapped
 from jetpipe_ros.diagnosis.fit import BUDGET, Fit, uncertainty
 from jetpipe_ros.diagnosis.jobs import Fitter, Job
@@ -243,16 +243,19 @@ def separating_experiment(a: ModelParams, b: ModelParams, prepared: Prepared) ->
 
 
 def diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams | None = None,
-             workers: int = 2, quiet: bool = False) -> dict:
-    """Run the diagnosis on a dataset and write its outputs; return diagnosis.json's content."""
+             workers: int = 2, quiet: bool = False, scheduler: str | None = None) -> dict:
+    """Run the diagnosis on a dataset and write its outputs; return diagnosis.json's content.
+
+    The candidate fits run on ``workers`` local Dask worker processes (1: in this process), or
+    on the Dask cluster at ``scheduler`` / ``DASK_SCHEDULER_ADDRESS`` (:class:`Cluster`)."""
     # The linear algebra here is on small matrices: BLAS threads only spin and take the cores
     # the fitting processes need (measured: 2x slower per fit with them).
-    with threadpool_limits(1):
-        return _diagnose(dataset_dir, out_dir, params, workers, quiet)
+    with threadpool_limits(1), Cluster(workers, scheduler) as cluster:
+        return _diagnose(dataset_dir, out_dir, params, cluster, quiet)
 
 
 def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams | None,
-              workers: int, quiet: bool) -> dict:
+              cluster: Cluster, quiet: bool) -> dict:
     progress = Progress(quiet)
     nominal = params if params is not None else ModelParams()
     already = nominal.enabled_effects()
@@ -280,10 +283,9 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
     progress("how visible each candidate would be at its typical size")
     seen = {c.name: visibility(prepared, nominal, nom_all, c) for c in candidates}
 
-    workers = max(1, min(workers, os.cpu_count() or 1))
-    with Fitter(prepared, swapped(prepared), workers, progress) as fitter:
+    with Fitter(prepared, swapped(prepared), cluster, progress) as fitter:
         progress(f"recalibrating the nominal parameters on the training data "
-                 f"({len(CALIBRATION.knobs)} knobs, {workers} processes)")
+                 f"({len(CALIBRATION.knobs)} knobs; fits on {cluster})")
         (cal,) = fitter.run([Job(nominal, (CAL,), CALIBRATION.start(), CALIBRATION_BUDGET)])
         (cal_row,) = rank([cal], nom_hold, nom_windows, dt)
         progress(f"recalibrated: held-out gap {nom_hold.gap:.2f} % -> {cal.holdout.gap:.2f} % "

@@ -1,17 +1,18 @@
-"""Fits run side by side: each job fits some knob groups on a base model; a pool of processes,
-started once per diagnosis with the data, runs the jobs and reports each as it finishes.
+"""Fits run side by side: each job fits some knob groups on a base model; the jobs of one call
+run on the workers of a Dask cluster (:mod:`cluster`), each reported as it finishes, or one
+after the other in this process when there is no cluster. Both ways run :func:`run_job`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 
 import numpy as np
-from threadpoolctl import threadpool_limits
+from distributed import as_completed
 
 from jetpipe_ros.diagnosis.calibration import group
+from jetpipe_ros.diagnosis.cluster import Cluster
 from jetpipe_ros.diagnosis.data import Prepared
 from jetpipe_ros.diagnosis.fit import BUDGET, Fit, fit
 from jetpipe_ros.model import ModelParams
@@ -30,41 +31,46 @@ class Job:
     swapped: bool = False  #: fit on the holdout, judge on the training data (cross-check)
 
 
-_WORKER: dict = {}  #: the data a fitting process was started with
-
-
-def _init_worker(prepared: Prepared, other: Prepared | None) -> None:
-    threadpool_limits(1)  # small matrices: BLAS threads would only spin (see diagnose)
-    _WORKER.update(prepared=prepared, other=other)
-
-
-def _run(job: Job, prepared: Prepared | None = None, other: Prepared | None = None) -> Fit:
-    data = (other if job.swapped else prepared) if prepared is not None else \
-        _WORKER["other" if job.swapped else "prepared"]
-    return fit(data, job.base, [group(g) for g in job.groups], job.start, job.budget)
+def run_job(job: Job, prepared: Prepared, other: Prepared) -> Fit:
+    """One fit: on ``prepared``, or on ``other`` (train and holdout exchanged) if swapped."""
+    return fit(other if job.swapped else prepared, job.base, [group(g) for g in job.groups],
+               job.start, job.budget)
 
 
 class Fitter:
-    """Runs fitting jobs in ``workers`` processes (1 = in this process), reporting progress.
+    """Runs fitting jobs on ``cluster`` (or in this process without one), reporting progress.
 
-    The data go to each process once, when the pool starts, not with every job; ``other`` is
-    the same data with train and holdout exchanged (for cross-checks).
+    The data go to every worker once, at the first call that uses the cluster (scattered with
+    ``broadcast=True``; the jobs carry references to them), not with every job; ``other`` is the
+    same data with train and holdout exchanged (for cross-checks). A call with a single job runs
+    it in this process.
     """
 
-    def __init__(self, prepared: Prepared, other: Prepared, workers: int,
+    def __init__(self, prepared: Prepared, other: Prepared, cluster: Cluster,
                  progress: Callable[[str], None]) -> None:
         self.prepared = prepared
         self.other = other
+        self.cluster = cluster
         self.progress = progress
-        self.pool = (ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
-                                         initargs=(prepared, other)) if workers > 1 else None)
+        self._data: list | None = None  #: futures of (prepared, other) on the workers
 
     def __enter__(self) -> Fitter:
         return self
 
     def __exit__(self, *exc) -> None:
-        if self.pool is not None:
-            self.pool.shutdown(cancel_futures=True)
+        if self._data is not None:
+            self.cluster.client.cancel(self._data)  # frees the workers' copies
+            self._data = None
+
+    def _shared(self):
+        """The client and the futures of the data on every worker (scattered once)."""
+        client = self.cluster.client
+        if self._data is None:
+            self._data = client.scatter([self.prepared, self.other], broadcast=True,
+                                        hash=False)
+            self.progress(f"  fitting on {self.cluster} (ready {self.cluster.startup_s:.1f} s "
+                          f"after start, data sent to every worker)")
+        return client, self._data
 
     def run(self, jobs: Sequence[Job], labels: Sequence[str] | None = None) -> list[Fit]:
         """Run ``jobs``; return their fits in the order of the jobs. ``labels`` name the jobs
@@ -77,11 +83,16 @@ class Fitter:
             self.progress(f"  [{done}/{len(jobs)}] {name}: held-out gap {f.holdout.gap:.2f} % "
                           f"({f.evaluations} runs, {f.seconds:.1f} s)")
 
-        if self.pool is None or len(jobs) == 1:
+        if len(jobs) == 1 or not self.cluster.parallel:
             for i, job in enumerate(jobs):
-                report(i, i + 1, _run(job, self.prepared, self.other))
+                report(i, i + 1, run_job(job, self.prepared, self.other))
         else:
-            futures = {self.pool.submit(_run, job): i for i, job in enumerate(jobs)}
-            for done, fut in enumerate(as_completed(futures), 1):
-                report(futures[fut], done, fut.result())
+            client, data = self._shared()
+            futures = [client.submit(run_job, job, *data, pure=False) for job in jobs]
+            index = {f.key: i for i, f in enumerate(futures)}
+            try:
+                for done, fut in enumerate(as_completed(futures), 1):
+                    report(index[fut.key], done, fut.result())
+            finally:
+                client.cancel(futures)
         return fits  # type: ignore[return-value]

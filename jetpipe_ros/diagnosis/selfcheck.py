@@ -22,12 +22,20 @@ the verdicts are scored: top-1 accuracy (an effect too small to show in the expe
 correctly answered by ``none``; a parameters-only case must be answered ``none`` with the
 calibration significant; an unlisted truth must be answered ``unlisted`` naming its subsystem),
 a confusion matrix, the recovery of the fitted parameters and of the calibration, and the
-held-out shrinkage.
+held-out shrinkage; how sure these figures are: top-1 accuracy per truth kind and per expected
+answer with Wilson score intervals, the shrinkage's quantiles and histogram.
+
+The cases run in parallel on a Dask cluster (:mod:`cluster`), one case per task. Each finished
+case is kept in ``OUT/cases/caseNN/`` (its diagnosis, its truth, ``result.json``), so an
+interrupted run started again with the same configuration computes only what is left.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
+import os
 import shutil
 import tempfile
 import time
@@ -37,17 +45,27 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from distributed import as_completed
 
 from jetpipe_ros.dataset import read_dataset
+from jetpipe_ros.diagnosis.cluster import Cluster
 from jetpipe_ros.diagnosis.data import prepare
 from jetpipe_ros.diagnosis.diagnose import diagnose
 from jetpipe_ros.diagnosis.verdict import NOISE_GAP
-from jetpipe_ros.model import EFFECTS, ModelParams, simulate
+from jetpipe_ros.fileio import to_json, write_files, write_text
+from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError, simulate
 from jetpipe_ros.model.params import end_stop_volumes
 from jetpipe_ros.plant import REAL_EFFECTS, PlantSpec
 from jetpipe_ros.plant import simulate as simulate_plant
 
 SOURCES = ("plant", "model")
+#: In ``OUT/cases/``: the run's configuration; in each ``caseNN/``: the scored case.
+CONFIG = "config.json"
+RESULT = "result.json"
+#: The histogram of held-out shrinkage, beside selfcheck.md.
+SHRINKAGE_PNG = "selfcheck_shrinkage.png"
+#: Confidence level of the accuracy intervals.
+CONFIDENCE = 0.95
 
 #: Model truths: realistic sizes (DESIGN.md s.3), name -> sampler of the effect's parameters.
 SIZES: dict[str, Callable[[np.random.Generator], dict]] = {
@@ -286,56 +304,152 @@ def record(truth: ModelParams | PlantSpec, root: Path, seed: int) -> None:
         on_model(truth, root, seed)
 
 
+class SelfcheckError(ParameterError):
+    """A self-check that cannot start (another configuration in its output directory) or whose
+    cases failed; the message names the directory and what to do."""
+
+
+def run_case(case: Case, make_dataset: Callable[[ModelParams | PlantSpec, Path, int], None],
+             cases_dir: str | None) -> Case:
+    """Record ``case``'s dataset in a temporary directory, diagnose it blind (its fits in this
+    process) and score it; return the case with the verdict filled in. With ``cases_dir`` the
+    diagnosis's outputs, the truth (``truth.yaml``) and the scored case (``result.json``, written
+    last and atomically: the mark of a finished case) go to ``cases_dir/caseNN/``."""
+    t0 = time.perf_counter()
+    name = f"case{case.index:02d}"
+    work = Path(tempfile.mkdtemp(prefix=f"jetpipe-selfcheck-{name}-"))
+    try:
+        data = work / name
+        truth = case.truth_model()
+        make_dataset(truth.with_values({"sensors.noise": True,
+                                        "sensors.seed": case.seed % 100000}), data, case.seed)
+        bench = case.bench()
+        case.visible = not case.effects or signature(truth, bench, data) >= NOISE_GAP
+        nominal = PlantSpec() if case.source == "plant" else ModelParams()
+        case.deviated = bool(case.deviations) and signature(bench, nominal, data) >= NOISE_GAP
+        out = (Path(cases_dir) if cases_dir else work / "out") / name
+        result = diagnose(data, out, workers=1, quiet=True)
+        write_text(out / "truth.yaml", _truth_yaml(truth))
+        v = result["verdict"]
+        case.verdict, case.verdict_params = v["effect"], v["params"]
+        case.verdict_subsystem = v["subsystem"]
+        case.confidence = v["confidence"]
+        cal = result["calibration"]
+        case.calibrated, case.knobs = cal["significant"], cal["knobs"]
+        case.recalibration_shrinkage = cal["shrinkage"]
+        case.gap_nominal, case.gap_augmented = (result["gap"]["nominal"],
+                                                result["gap"]["augmented"])
+        case.shrinkage = result["gap"]["shrinkage"]
+        case.seconds = time.perf_counter() - t0
+        if cases_dir:
+            write_text(out / RESULT, to_json(dataclasses.asdict(case), indent=1))
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return case
+
+
+def _configuration(cases_dir: Path, config: dict, restart: bool) -> dict[int, Case]:
+    """Check ``cases_dir`` against this run's configuration (write it if new); return the
+    cases an earlier run of it finished (by index). Another configuration is refused unless
+    ``restart``, which discards it."""
+    stored = cases_dir / CONFIG
+    if restart and cases_dir.exists():
+        shutil.rmtree(cases_dir)
+    if stored.exists():
+        old = json.loads(stored.read_text())
+        if old != config:
+            flags = lambda c: (f"--cases {c['cases']} --seed {c['seed']} --truth {c['truth']} "  # noqa: E731
+                               f"--{'' if c['deviations'] else 'no-'}deviations")
+            raise SelfcheckError(f"{cases_dir.parent}: holds a self-check run with "
+                                 f"{flags(old)}, not {flags(config)}: give another --out, or "
+                                 f"--restart to discard it")
+    cases_dir.mkdir(parents=True, exist_ok=True)
+    for stale in cases_dir.glob(".case*"):  # outputs a stopped run was writing
+        shutil.rmtree(stale, ignore_errors=True)
+    write_text(stored, to_json(config, indent=1))
+    done = {}
+    for path in sorted(cases_dir.glob(f"case*/{RESULT}")):
+        case = Case(**json.loads(path.read_text()))
+        if case.index < config["cases"]:
+            done[case.index] = case
+    return done
+
+
+def _duration(seconds: float) -> str:
+    m, s = divmod(int(round(seconds)), 60)
+    return f"{m}m{s:02d}s" if m else f"{s}s"
+
+
 def run_selfcheck(n: int, seed: int,
                   make_dataset: Callable[[ModelParams | PlantSpec, Path, int], None] = record,
                   out_dir: Path | None = None, workers: int = 2,
                   progress: Callable[[str], None] = print, deviate: bool = True,
-                  source: str = "plant") -> dict:
-    """Run ``n`` cases; ``make_dataset(truth, root, seed)`` writes a noisy dataset to root."""
-    cases = make_cases(n, seed, deviate, source)
-    work = Path(tempfile.mkdtemp(prefix="jetpipe-selfcheck-"))
-    began = time.perf_counter()
-    try:
-        for case in cases:
-            t0 = time.perf_counter()
-            data = work / f"case{case.index:02d}"
-            truth = case.truth_model()
-            make_dataset(truth.with_values({"sensors.noise": True,
-                                            "sensors.seed": case.seed % 100000}), data,
-                         case.seed)
-            bench = case.bench()
-            case.visible = not case.effects or signature(truth, bench, data) >= NOISE_GAP
-            nominal = PlantSpec() if case.source == "plant" else ModelParams()
-            case.deviated = bool(case.deviations) and \
-                signature(bench, nominal, data) >= NOISE_GAP
-            # Each case's outputs are kept beside the summary, the truth with them.
-            out = (out_dir / "cases" if out_dir else work) / f"case{case.index:02d}"
-            result = diagnose(data, out, workers=workers, quiet=True)
-            (out / "truth.yaml").write_text(_truth_yaml(truth))
-            v = result["verdict"]
-            case.verdict, case.verdict_params = v["effect"], v["params"]
-            case.verdict_subsystem = v["subsystem"]
-            case.confidence = v["confidence"]
-            cal = result["calibration"]
-            case.calibrated, case.knobs = cal["significant"], cal["knobs"]
-            case.recalibration_shrinkage = cal["shrinkage"]
-            case.gap_nominal, case.gap_augmented = (result["gap"]["nominal"],
-                                                    result["gap"]["augmented"])
-            case.shrinkage = result["gap"]["shrinkage"]
-            case.seconds = time.perf_counter() - t0
-            progress(f"[{case.index + 1}/{n}] {case.kind:42s} truth {case.truth:28s} -> "
-                     f"{case.verdict:28s} {'ok ' if case.correct else 'MISS'} "
-                     f"{'recalibrated ' if case.calibrated else ''}"
-                     f"shrinkage {100 * case.shrinkage:4.0f} %  ({case.seconds:.0f} s)")
-            shutil.rmtree(data, ignore_errors=True)
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
-    summary = summarise(cases, time.perf_counter() - began)
-    if out_dir is not None:
-        from jetpipe_ros import fileio
+                  source: str = "plant", scheduler: str | None = None,
+                  restart: bool = False) -> dict:
+    """Run ``n`` cases; ``make_dataset(truth, root, seed)`` writes a noisy dataset to root.
 
-        fileio.write_files({out_dir / "selfcheck.json": fileio.to_json(summary) + "\n",
-                            out_dir / "selfcheck.md": render(summary)})
+    The cases run in parallel, one per task on the workers of a Dask cluster
+    (:class:`cluster.Cluster`: ``workers`` local processes, 1 = one after the other in this
+    process, or the cluster at ``scheduler``), each case's diagnosis serial in its worker. With
+    ``out_dir`` each case is kept in ``out_dir/cases/caseNN/`` as it finishes, so that a run
+    stopped half-way and started again with the same configuration (``n``, ``seed``,
+    ``source``, ``deviate``) computes only the cases left; another configuration there is
+    refused unless ``restart``. A case that fails does not stop the others: they finish and are
+    kept, then :class:`SelfcheckError` names the failures.
+    """
+    cases = make_cases(n, seed, deviate, source)
+    cases_dir = out_dir / "cases" if out_dir is not None else None
+    done: dict[int, Case] = {}
+    if cases_dir is not None:
+        done = _configuration(cases_dir, {"cases": n, "seed": seed, "truth": source,
+                                          "deviations": deviate}, restart)
+        if done:
+            progress(f"resuming: {len(done)} of {n} cases already done in {cases_dir} "
+                     f"(skipped: {', '.join(str(i) for i in sorted(done))})")
+    todo = [c for c in cases if c.index not in done]
+    began = time.perf_counter()
+    failures: list[str] = []
+
+    def report(case: Case) -> None:
+        done[case.index] = case
+        finished = len(done) - (n - len(todo))
+        elapsed = time.perf_counter() - began
+        left = elapsed / finished * (len(todo) - finished - len(failures))
+        progress(f"[{len(done)}/{n}] {case.kind:42s} truth {case.truth:28s} -> "
+                 f"{case.verdict:28s} {'ok ' if case.correct else 'MISS'} "
+                 f"{'recalibrated ' if case.calibrated else ''}"
+                 f"shrinkage {100 * case.shrinkage:4.0f} %  ({case.seconds:.0f} s; "
+                 f"{_duration(elapsed)} elapsed, about {_duration(left)} left)")
+
+    where = str(cases_dir) if cases_dir is not None else None
+    with Cluster(workers, scheduler) as cluster:
+        client = cluster.client if todo else None
+        if client is None:
+            for case in todo:
+                report(run_case(case, make_dataset, where))
+        else:
+            futures = [client.submit(run_case, case, make_dataset, where, pure=False)
+                       for case in todo]
+            index = {f.key: c.index for f, c in zip(futures, todo)}
+            for fut in as_completed(futures):
+                try:
+                    report(fut.result())
+                except Exception as exc:  # the others go on  # noqa: BLE001
+                    failures.append(f"case {index[fut.key]}: {type(exc).__name__}: {exc}")
+                    progress(f"case {index[fut.key]} FAILED: {type(exc).__name__}: {exc}")
+    if failures:
+        kept = f"; the {len(done)} finished are kept in {cases_dir}: run the same command " \
+               f"again to retry the rest" if cases_dir is not None else ""
+        raise SelfcheckError(f"{len(failures)} of {n} cases failed ({'; '.join(failures)})"
+                             f"{kept}")
+    summary = summarise([done[c.index] for c in cases], time.perf_counter() - began)
+    summary["resumed"] = n - len(todo)
+    summary["ran_on"] = str(cluster)
+    if out_dir is not None:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        write_files({out_dir / "selfcheck.json": to_json(summary) + "\n",
+                     out_dir / "selfcheck.md": render(summary)})
+        shrinkage_figure(summary, out_dir / SHRINKAGE_PNG)
     return summary
 
 
@@ -345,8 +459,29 @@ def _truth_yaml(truth: ModelParams | PlantSpec) -> str:
     return truth.to_ros_yaml(only_changed=True)
 
 
+def accuracy_by(cases: list[Case], key: Callable[[Case], str]) -> dict[str, dict]:
+    """Top-1 accuracy of the cases grouped by ``key``, each with its Wilson score interval at
+    :data:`CONFIDENCE` (statsmodels ``proportion_confint``)."""
+    from statsmodels.stats.proportion import proportion_confint
+
+    out = {}
+    for name in sorted({key(c) for c in cases}):
+        group = [c for c in cases if key(c) == name]
+        k = sum(c.correct for c in group)
+        lo, hi = proportion_confint(k, len(group), alpha=1.0 - CONFIDENCE, method="wilson")
+        out[name] = {"cases": len(group), "correct": k, "accuracy": k / len(group),
+                     "interval": [float(lo), float(hi)]}
+    return out
+
+
+#: Quantiles of the shrinkage distribution reported, by name.
+QUANTILES = {"min": 0.0, "q10": 0.1, "q25": 0.25, "median": 0.5, "q75": 0.75, "q90": 0.9,
+             "max": 1.0}
+
+
 def summarise(cases: list[Case], seconds: float) -> dict:
-    """Accuracy, confusion matrix, parameter and calibration recovery and shrinkage."""
+    """Accuracy (overall, and per truth kind and per expected answer with Wilson intervals),
+    confusion matrix, parameter and calibration recovery and the distribution of shrinkage."""
     labels = sorted({c.truth for c in cases} | {c.verdict for c in cases})
     confusion = {t: {v: sum(1 for c in cases if c.truth == t and c.verdict == v)
                      for v in labels} for t in sorted({c.truth for c in cases})}
@@ -378,6 +513,7 @@ def summarise(cases: list[Case], seconds: float) -> dict:
         "source": cases[0].source if cases else None,
         "deviations": any(c.deviations for c in cases),
         "top1_accuracy": float(np.mean([c.correct for c in cases])),
+        "top1_interval": accuracy_by(cases, lambda c: "all")["all"]["interval"],
         "effect_accuracy": float(np.mean([c.correct for c in with_effect]))
         if with_effect else None,
         "none_correct": all(c.correct for c in cases if not c.effects),
@@ -395,6 +531,12 @@ def summarise(cases: list[Case], seconds: float) -> dict:
         } if params_only else None,
         "median_shrinkage": float(np.median([c.shrinkage for c in with_gap]))
         if with_gap else None,
+        "confidence_level": CONFIDENCE,
+        "accuracy_by_kind": accuracy_by(cases, lambda c: c.kind),
+        "accuracy_by_truth": accuracy_by(cases, lambda c: c.truth),
+        "shrinkage_quantiles": {"cases": len(with_gap), **{
+            k: float(np.quantile([c.shrinkage for c in with_gap], q))
+            for k, q in QUANTILES.items()}} if with_gap else None,
         "median_param_rel_error": float(np.median([r["rel_error"] for r in recovery]))
         if recovery else None,
         "knobs_named": float(np.mean([k["named"] for k in knobs])) if knobs else None,
@@ -419,7 +561,9 @@ def render(summary: dict) -> str:
     dev = "with" if summary["deviations"] else "without"
     lines = [f"# jetpipe selfcheck: {summary['cases']} cases in {summary['seconds']:.0f} s, "
              f"data from the {summary['source']}, {dev} parameter deviations", "",
-             f"- top-1 accuracy: {100 * summary['top1_accuracy']:.0f} %"]
+             f"- top-1 accuracy: {100 * summary['top1_accuracy']:.0f} % "
+             f"({100 * summary['top1_interval'][0]:.0f}-{100 * summary['top1_interval'][1]:.0f} "
+             f"%, {100 * summary['confidence_level']:.0f} % Wilson interval)"]
     if summary["effect_accuracy"] is not None:
         lines.append(f"- top-1 unmodelled effect (cases with an effect): "
                      f"{100 * summary['effect_accuracy']:.0f} %")
@@ -450,6 +594,25 @@ def render(summary: dict) -> str:
         lines.append(f"- calibration knobs off by >= 5 % named in the right direction: "
                      f"{100 * summary['knobs_named']:.0f} %; median knob error "
                      f"{summary['median_knob_error']:.3f}")
+    if summary.get("resumed"):
+        lines.append(f"- {summary['resumed']} of the cases were finished by an earlier run "
+                     f"(resumed); the time above is this run's")
+    level = f"{100 * summary['confidence_level']:.0f} %"
+    for key, title in (("accuracy_by_truth", "expected answer"), ("accuracy_by_kind",
+                                                                    "truth kind")):
+        lines += ["", f"## Top-1 accuracy per {title} ({level} Wilson interval)", "",
+                  f"| {title} | cases | correct | accuracy | {level} interval |",
+                  "|---|---|---|---|---|"]
+        for name, a in summary[key].items():
+            lo, hi = a["interval"]
+            lines.append(f"| {name} | {a['cases']} | {a['correct']} | "
+                         f"{100 * a['accuracy']:.0f} % | {100 * lo:.0f}-{100 * hi:.0f} % |")
+    q = summary["shrinkage_quantiles"]
+    if q:
+        lines += ["", f"## Held-out shrinkage ({q['cases']} cases with a visible gap)", "",
+                  "| " + " | ".join(QUANTILES) + " |", "|---" * len(QUANTILES) + "|",
+                  "| " + " | ".join(f"{100 * q[k]:.0f} %" for k in QUANTILES) + " |", "",
+                  f"![held-out shrinkage per case]({SHRINKAGE_PNG})"]
     conf = summary["confusion"]
     cols = sorted({v for row in conf.values() for v, n in row.items() if n})
     lines += ["", "## Confusion matrix (rows: truth, columns: verdict)", "",
@@ -479,3 +642,35 @@ def render(summary: dict) -> str:
             lines.append(f"| {r['case']} | {r['knob']} | {r['truth']:.3f} | {r['fitted']:.3f} "
                          f"| {'yes' if r['named'] else '**no**'} |")
     return "\n".join(lines) + "\n"
+
+
+def shrinkage_figure(summary: dict, path: Path) -> None:
+    """The histogram of held-out shrinkage over the cases with a visible gap, correct and
+    missed verdicts stacked, the median marked; written to ``path`` as PNG (atomically)."""
+    from jetpipe_ros.diagnosis.report import _plt
+
+    plt = _plt()
+    rows = [r for r in summary["results"]
+            if (r["effects"] and r["visible"]) or r["deviated"]]
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    if rows:
+        values = [[100 * r["shrinkage"] for r in rows if r["correct"] is ok]
+                  for ok in (True, False)]
+        low = min(0.0, *(100 * r["shrinkage"] for r in rows))
+        ax.hist(values, bins=np.linspace(low, 100, 21), stacked=True,
+                color=["#1f77b4", "#d62728"], label=["verdict correct", "verdict missed"])
+        ax.axvline(100 * summary["shrinkage_quantiles"]["median"], color="k", ls="--",
+                   label=f"median {100 * summary['shrinkage_quantiles']['median']:.0f} %")
+        ax.legend(fontsize=8, loc="upper left")
+    ax.set_xlabel("held-out shrinkage of the gap, 1 - augmented / nominal [%]")
+    ax.set_ylabel("cases")
+    ax.set_title(f"{len(rows)} of {summary['cases']} cases with a visible gap", fontsize=9)
+    fig.tight_layout()
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=90)
+        os.replace(tmp, path)
+    finally:
+        plt.close(fig)
+        Path(tmp).unlink(missing_ok=True)

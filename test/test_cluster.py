@@ -1,0 +1,134 @@
+"""The diagnosis's work on a Dask cluster: a self-check's cases spread over two local workers,
+resumed after an interruption; a fleet of three datasets, one of them bad."""
+
+from __future__ import annotations
+
+import functools
+import json
+import shutil
+
+import pytest
+from distributed import LocalCluster
+
+from jetpipe_ros.cli import main
+from jetpipe_ros.dataset import DatasetError
+from jetpipe_ros.diagnosis import selfcheck
+from jetpipe_ros.diagnosis.fleet import dataset_dirs, names_of
+from jetpipe_ros.model import ModelParams
+from test_diagnosis import make_dataset
+
+
+@pytest.fixture(scope="module")
+def scheduler():
+    """A running cluster of two single-threaded worker processes, reached by its address as a
+    remote one would be (``--scheduler``)."""
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        yield cluster.scheduler_address
+
+
+def _build(log, truth, root, seed):
+    """The small campaign of test_diagnosis; logs each case it records (the workers are other
+    processes: a file tells what they did); case 2 fails while ``log``.stop exists."""
+    with open(log, "a") as f:
+        f.write(root.name + "\n")
+    if root.name == "case02" and log.with_suffix(".stop").exists():
+        raise RuntimeError("interrupted")
+    make_dataset(root, truth, seed=seed % 1000)
+
+
+def test_selfcheck_cases_run_on_the_cluster_and_resume(tmp_path, monkeypatch, scheduler):
+    monkeypatch.setitem(selfcheck.KINDS, "model", ("none", "valve_lag"))
+    log = tmp_path / "recorded.log"
+    log.with_suffix(".stop").touch()
+    build = functools.partial(_build, log)
+    out = tmp_path / "out"
+    run = functools.partial(selfcheck.run_selfcheck, 3, 2, build, out, deviate=False,
+                            source="model", scheduler=scheduler)
+    with pytest.raises(selfcheck.SelfcheckError, match="1 of 3 cases failed.*case 2.*"
+                                                       "interrupted.*run the same command"):
+        run(progress=lambda line: None)
+    assert sorted(log.read_text().split()) == ["case00", "case01", "case02"]
+    assert [p.parent.name for p in sorted(out.glob("cases/*/result.json"))] == ["case00",
+                                                                                "case01"]
+    assert not (out / "selfcheck.json").exists()
+
+    log.with_suffix(".stop").unlink()
+    lines = []
+    summary = run(progress=lines.append)
+    assert log.read_text().split()[3:] == ["case02"]  # only the third is computed
+    assert lines[0].startswith("resuming: 2 of 3 cases already done")
+    assert lines[-1].startswith("[3/3]") and "left" in lines[-1]
+    assert summary["resumed"] == 2 and summary["ran_on"] == f"the Dask scheduler at {scheduler}"
+    assert [r["truth"] for r in summary["results"]] == ["none", "valve_lag", "none"]
+    assert summary["results"][1]["verdict"] == "valve_lag"
+    by_truth = summary["accuracy_by_truth"]
+    assert by_truth["none"]["cases"] == 2 and by_truth["valve_lag"]["cases"] == 1
+    for a in [*by_truth.values(), *summary["accuracy_by_kind"].values()]:
+        lo, hi = a["interval"]
+        assert 0.0 <= lo <= a["accuracy"] <= hi <= 1.0 and hi - lo > 0.2  # few cases: wide
+    q = summary["shrinkage_quantiles"]
+    assert q["cases"] >= 1 and q["min"] <= q["median"] <= q["max"]
+    md = (out / "selfcheck.md").read_text()
+    assert "Wilson interval" in md and selfcheck.SHRINKAGE_PNG in md
+    assert (out / selfcheck.SHRINKAGE_PNG).read_bytes()[:4] == b"\x89PNG"
+    assert json.loads((out / "selfcheck.json").read_text())["cases"] == 3
+
+    # Another configuration in the same OUT is refused before anything runs.
+    with pytest.raises(selfcheck.SelfcheckError, match="--seed 2 .*not.*--seed 3.*--restart"):
+        selfcheck.run_selfcheck(3, 3, build, out, deviate=False, source="model",
+                                scheduler=scheduler, progress=lambda line: None)
+    assert len(log.read_text().split()) == 4
+
+
+def test_fleet_diagnoses_every_dataset_and_reports_the_bad_one(tmp_path, scheduler):
+    fleet = tmp_path / "fleet"
+    make_dataset(fleet / "axis1", ModelParams().with_effect("valve_lag", corner_frequency=20.0),
+                 seed=1)
+    make_dataset(fleet / "axis2", ModelParams().with_values({"flow.gain_charge": 0.9,
+                                                             "flow.gain_discharge": 0.9}),
+                 seed=2)
+    shutil.copytree(fleet / "axis1", fleet / "axis3")
+    csv = fleet / "axis3" / "sweep.csv"
+    lines = csv.read_text().splitlines()
+    lines[5] = "1,2,x"
+    csv.write_text("\n".join(lines))
+    out = tmp_path / "out"
+    (out / "axis3").mkdir(parents=True)
+    (out / "axis3" / "diagnosis.json").write_text("{}")  # an earlier run's: removed
+
+    status = main(["diagnose", str(fleet / "axis*"), "--out", str(out), "--scheduler",
+                   scheduler, "--quiet"])
+    assert status == 1  # one dataset failed
+    result = json.loads((out / "fleet.json").read_text())
+    assert result["schema"] == "jetpipe.fleet/1"
+    assert (result["datasets"], result["succeeded"], result["failed"]) == (3, 2, 1)
+    rows = {r["name"]: r for r in result["actuators"]}
+    assert [r["name"] for r in result["actuators"]][-1] == "axis3"  # failures last
+    assert "sweep.csv" in rows["axis3"]["error"] and "line 6" in rows["axis3"]["error"]
+    assert not (out / "axis3" / "diagnosis.json").exists()
+    ok = result["actuators"][:2]
+    assert ok[0]["gap"]["nominal"] >= ok[1]["gap"]["nominal"]  # sorted by gap
+    assert rows["axis1"]["verdict"]["effect"] == "valve_lag"
+    assert rows["axis2"]["calibration"]["significant"]
+    assert rows["axis2"]["calibration"]["off"]["flow_gain_charge"] == pytest.approx(0.9, abs=0.03)
+    for name in ("axis1", "axis2"):
+        diag = json.loads((out / name / "diagnosis.json").read_text())
+        assert diag["gap"]["nominal"] == rows[name]["gap"]["nominal"]
+        assert (out / name / "report.html").exists() and (out / name / "augmented.yaml").exists()
+    page = (out / "fleet.html").read_text()
+    assert "data:image/png;base64," in page and "sweep.csv" in page
+    assert page.index("axis3") > page.index("axis1")
+
+
+def test_fleet_arguments(tmp_path):
+    for name in ("a/x", "b/x", "c/y"):
+        (tmp_path / name).mkdir(parents=True)
+    dirs, fleet = dataset_dirs([str(tmp_path / "c" / "y")])
+    assert dirs == [tmp_path / "c" / "y"] and not fleet  # one dataset: as before
+    dirs, fleet = dataset_dirs([str(tmp_path / "*" / "y")])
+    assert fleet  # a glob is a fleet, even of one
+    with pytest.raises(DatasetError, match="matches no dataset directory"):
+        dataset_dirs([str(tmp_path / "*" / "z")])
+    with pytest.raises(DatasetError, match="two datasets named x"):
+        names_of(dataset_dirs([str(tmp_path / "*" / "x")])[0])
