@@ -68,7 +68,8 @@ def _selfcheck(args: argparse.Namespace) -> int:
     output_dir(args.out, "--out")  # before the work
     summary = run_selfcheck(args.cases, args.seed, out_dir=Path(args.out), workers=args.jobs,
                             deviate=args.deviations, source=args.truth,
-                            scheduler=args.scheduler, restart=args.restart)
+                            scheduler=args.scheduler, restart=args.restart,
+                            progress=lambda line: print(line, flush=True))  # also into a file
     lo, hi = summary["top1_interval"]
     print(f"\n{summary['cases']} cases in {summary['seconds']:.0f} s: top-1 accuracy "
           f"{100 * summary['top1_accuracy']:.0f} % ({100 * lo:.0f}-{100 * hi:.0f} %, "
