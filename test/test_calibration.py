@@ -110,3 +110,25 @@ def test_recalibration_recovers_the_factors_from_a_neutral_start(off_bench):
     for k in ("valve_gain", "valve_frequency"):
         assert got[k] == pytest.approx(1.0, abs=0.02), k
     assert f.holdout.gap < 0.1
+
+
+def test_a_joint_fit_grids_the_effect_from_a_given_base(off_bench):
+    """The restart used when a knob ends at its bound (diagnose.fit_effects): the effect's first
+    knob searched on a grid with the calibration knobs held at a given base. With a budget of
+    just the grid, the fit ends on a grid point whose knobs are the base's, and from the
+    bench's own factors that grid fits better than from nominal."""
+    from jetpipe_ros.diagnosis.calibration import group
+    from jetpipe_ros.diagnosis.fit import GRID
+
+    prepared = prepare(read_dataset(off_bench / "data"))
+    truth = {k.name: 1.0 for k in CALIBRATION.knobs} | {
+        "flow_gain_charge": 0.9, "flow_gain_discharge": 0.9, "friction_entry": 1.3,
+        "friction_exit": 1.3, "viscous_entry": 1.3, "viscous_exit": 1.3}
+    lag = group("valve_lag")
+    base = np.concatenate([CALIBRATION.to_unit(truth), lag.start()])
+    from_base = fit(prepared, NOMINAL, [CALIBRATION, lag], None, GRID, grid_base=base)
+    assert from_base.evaluations == GRID
+    assert from_base.z[:len(CALIBRATION.knobs)] == pytest.approx(base[:len(CALIBRATION.knobs)])
+    from_nominal = fit(prepared, NOMINAL, [CALIBRATION, lag], None, GRID)
+    assert from_nominal.values["calibration"]["flow_gain_charge"] == pytest.approx(1.0)
+    assert from_base.train.total < 0.5 * from_nominal.train.total

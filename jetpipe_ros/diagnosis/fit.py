@@ -132,15 +132,18 @@ class _Objective:
 
 
 def fit(prepared: Prepared, nominal: ModelParams, candidates: Sequence[KnobGroup],
-        start: np.ndarray | None = None, budget: int = BUDGET) -> Fit:
+        start: np.ndarray | None = None, budget: int = BUDGET,
+        grid_base: np.ndarray | None = None) -> Fit:
     """Fit the knob groups ``candidates`` jointly on the training data, applied in order to
-    ``nominal``; score on the holdout. Without ``start`` the first knob is searched on a grid;
-    with several starts (rows of a 2-D ``start``) the fit goes on from the best."""
+    ``nominal``; score on the holdout. Without ``start`` the first knob of the first effect is
+    searched on a grid, the others at ``grid_base`` (unit-scaled; default: where each group
+    changes nothing); with several starts (rows of a 2-D ``start``) the fit goes on from the
+    best."""
     began = time.perf_counter()
     obj = _Objective(prepared, nominal, candidates, budget)
     try:
         if start is None:
-            start = _grid_first_knob(obj)
+            start = _grid_first_knob(obj, grid_base)
         elif start.ndim == 2:
             start = min(start, key=obj.cost)
         if start.size == 1:
@@ -161,11 +164,12 @@ def fit(prepared: Prepared, nominal: ModelParams, candidates: Sequence[KnobGroup
                seconds=time.perf_counter() - began)
 
 
-def _grid_first_knob(obj: _Objective) -> np.ndarray:
-    """Start of a fit: every knob at its neutral point but the first knob of the first effect,
-    which is searched on a grid (and from each value a form-selecting knob lists in ``tries``).
-    Calibration knobs are not gridded: they start at 1."""
-    base = np.concatenate([c.start() for c in obj.candidates])
+def _grid_first_knob(obj: _Objective, base: np.ndarray | None = None) -> np.ndarray:
+    """Start of a fit: every knob at ``base`` (default: its neutral point) but the first knob of
+    the first effect, which is searched on a grid (and from each value a form-selecting knob
+    lists in ``tries``). Calibration knobs are not gridded: they start at 1, or at ``base``."""
+    if base is None:
+        base = np.concatenate([c.start() for c in obj.candidates])
     knobs = [k for c in obj.candidates for k in c.knobs]
     offsets = np.cumsum([0] + obj.sizes)
     first = next((int(o) for c, o in zip(obj.candidates, offsets) if c.name != CALIBRATION),

@@ -29,12 +29,13 @@ class Job:
     start: np.ndarray | None = None
     budget: int = BUDGET
     swapped: bool = False  #: fit on the holdout, judge on the training data (cross-check)
+    grid_base: np.ndarray | None = None  #: without ``start``: where the grid's other knobs sit
 
 
 def run_job(job: Job, prepared: Prepared, other: Prepared) -> Fit:
     """One fit: on ``prepared``, or on ``other`` (train and holdout exchanged) if swapped."""
     return fit(other if job.swapped else prepared, job.base, [group(g) for g in job.groups],
-               job.start, job.budget)
+               job.start, job.budget, job.grid_base)
 
 
 class Fitter:
