@@ -36,4 +36,6 @@ else
   echo "$DISTRO" > "$VENV/ros-distro"
 fi
 "$VENV/bin/python" -m pip install -q --no-deps -e .
+# What was installed from (scripts/test.sh sets up again when the requirements change).
+cat requirements.txt "$REQUIREMENTS" setup.py | sha256sum | cut -d' ' -f1 > "$VENV/requirements.sha"
 echo "[setup] done: $VENV ready"
