@@ -91,12 +91,13 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
     A knob the recalibration drove to its bound is suspect of standing in for something it
     does not model (a valve hysteresis taken as 2.5 times the friction): the effect's basin then
     lies where that knob is near nominal, which a descent from the starts above does not reach.
-    So each candidate is also refitted from the recalibration with those knobs back at nominal,
-    the effect's first knob searched on a grid there (:func:`fit.fit`), and the lower training
-    error of the two joint fits is kept. A candidate that removes less than :data:`JOINT_MIN` of
-    the noise variance from the training error both alone and on the recalibrated model is not
-    refitted: at that size it could not show. Returns the fits alone by candidate, and the
-    calibrated fits."""
+    So, unless the best joint fit already leaves no gap of :data:`verdict.NOISE_GAP` on the
+    training data (then no other basin has anything to explain), each candidate is also refitted
+    from the recalibration with those knobs back at nominal, the effect's first knob searched on
+    a grid there (:func:`fit.fit`), and the lower training error of the two joint fits is kept.
+    A candidate that removes less than :data:`JOINT_MIN` of the noise variance from the training
+    error both alone and on the recalibrated model is not refitted: at that size it could not
+    show. Returns the fits alone by candidate, and the calibrated fits."""
     progress(f"fitting {len(names)} candidates alone and on the recalibrated model")
     n = len(names)
     fits = fitter.run([Job(nominal, (e,)) for e in names] + [Job(cal.params, (e,))
@@ -107,26 +108,31 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
     todo = [(e, f) for e, f in zip(names, onto)
             if max(_removed(nom_train, alone[e].train),
                    _removed(cal.train, f.train)) >= JOINT_MIN]
-    suspect = calibration.at_bound(cal.values[CAL])
     progress(f"refitting {len(todo)} candidates jointly with the calibration knobs "
-             f"({', '.join(e for e, _ in todo) or 'none'})" +
-             (f"; {', '.join(suspect)} at a bound: also from there back at nominal"
-              if suspect and todo else ""))
-    jobs = [Job(nominal, f.groups, np.stack([
+             f"({', '.join(e for e, _ in todo) or 'none'})")
+    best = {f.name: f for f in onto}
+
+    def keep(joint: Sequence[Fit]) -> None:
+        for j in joint:
+            if j.train.total <= best[j.name].train.total:
+                best[j.name] = j
+
+    keep(fitter.run([Job(nominal, f.groups, np.stack([
         f.z, np.concatenate([CALIBRATION.start(), alone[e].z]),
-        np.concatenate([cal.z, alone[e].z])]), JOINT_BUDGET) for e, f in todo]
-    labels = [f"{e} + calibration, jointly" for e, _ in todo]
-    if suspect:
+        np.concatenate([cal.z, alone[e].z])]), JOINT_BUDGET) for e, f in todo],
+        [f"{e} + calibration, jointly" for e, _ in todo]))
+    suspect = calibration.at_bound(cal.values[CAL])
+    left = min((f.train.gap for f in best.values()), default=0.0)
+    if suspect and todo and left >= NOISE_GAP:
+        progress(f"{', '.join(suspect)} at a bound and {left:.2f} % of the training gap left: "
+                 f"refitting from there back at nominal")
         reset = np.array([k.to_unit(k.off) if k.name in suspect else z
                           for k, z in zip(CALIBRATION.knobs, cal.z)])
-        jobs += [Job(nominal, f.groups, None, JOINT_BUDGET,
-                     grid_base=np.concatenate([reset, calibration.group(e).start()])) for e, f in todo]
-        labels += [f"{e} + calibration, jointly, {', '.join(suspect)} from nominal"
-                   for e, _ in todo]
-    best = {f.name: f for f in onto}
-    for j in fitter.run(jobs, labels):
-        if j.train.total <= best[j.name].train.total:
-            best[j.name] = j
+        keep(fitter.run([Job(nominal, f.groups, None, JOINT_BUDGET,
+                             grid_base=np.concatenate([reset, calibration.group(e).start()]))
+                         for e, f in todo],
+                        [f"{e} + calibration, jointly, {', '.join(suspect)} from nominal"
+                         for e, _ in todo]))
     return alone, [best[f.name] for f in onto]
 
 
