@@ -153,8 +153,8 @@ def test_the_localisation_points_at_the_valve_for_a_valve_lag(lag_result):
     # The valve and chambers replayed with the measured motion hold the gap, not the mechanics.
     sub = loc["subsystems"]
     assert sub["valve_and_chambers"]["gap"] > sub["mechanics"]["gap"]
-    assert result["visibility"]["at_typical_size_gap_pct"]["valve_lag"] > 1.0
-    assert "valve_lag" not in result["visibility"]["too_small_to_see"]
+    assert result["visibility"]["at_typical_size_gap_pct"]["valve_lag:first_order"] > 1.0
+    assert "valve_lag:first_order" not in result["visibility"]["too_small_to_see"]
 
 
 def test_a_nominal_model_with_the_effect_on_has_nothing_left(tmp_path):

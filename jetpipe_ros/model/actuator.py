@@ -36,8 +36,11 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
     substeps = p["integration.substeps"]
     h = dt / substeps
     lag_hz = effect("valve_lag", "corner_frequency", 0.0)
+    second_order = lag_hz and p["effects.valve_lag.form"] == "second_order"
     valve = discretise_valve(p, h, extra_lag_hz=lag_hz or None,
-                             extra_delay=effect("valve_delay", "delay", 0.0))
+                             extra_delay=effect("valve_delay", "delay", 0.0),
+                             extra_lag_damping=p["effects.valve_lag.damping_ratio"]
+                             if second_order else None)
     planes = np.array([[p[f"friction.{phase}.{q}"] for q in
                         ("breakaway", "stribeck_velocity", "viscous", "coulomb")]
                        for phase in ("entry", "exit")], dtype=float)

@@ -126,8 +126,9 @@ def measure(c: Constants, x: np.ndarray, noise: np.ndarray, out: np.ndarray) -> 
         out[OUT_P2_MEAS] = gain * x[P2] + offset + c.sensor_bias_2 + c.sigma_p * noise[2]
 
 
-#: Largest order of the valve chain: Eq. 4's third order, Eq. 9's lead-lag, the valve_lag effect.
-VALVE_ORDER = 5
+#: Largest order of the valve chain: Eq. 4's third order, Eq. 9's lead-lag, the valve_lag effect
+#: (second order at most).
+VALVE_ORDER = 6
 
 #: Samples per block of :func:`advance`: the valve pass fills one block's u_eq before the
 #: physics pass reads it, so the buffer stays in the first-level cache.

@@ -60,6 +60,7 @@ FRICTION_PLANES = {
 }
 THERMAL_FORMS = ("polytropic", "heat_transfer")
 LEAKAGE_FORMS = ("laminar", "orifice")
+LAG_FORMS = ("first_order", "second_order")
 FRICTION_UNITS = {"breakaway": "N", "stribeck_velocity": "m/s", "viscous": "N s/m", "coulomb": "N"}
 
 
@@ -161,8 +162,14 @@ for _phase, _planes in FRICTION_PLANES.items():
 #: Parameters of each effect (besides ``effects.<name>.enabled``). Typical sizes: DESIGN.md s.3.
 _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
     "valve_delay": [_p("delay", 0.002, "Extra transport delay", "s", 0.0, 0.05)],
-    "valve_lag": [_p("corner_frequency", 30.0, "First-order lag corner frequency", "Hz",
-                     0.5, 1000.0)],
+    "valve_lag": [
+        _p("form", "first_order", "Lag on the valve's output: first order (a corner), or "
+           "second order (a natural frequency and a damping ratio)", choices=LAG_FORMS),
+        _p("corner_frequency", 30.0, "Corner frequency (first order) or natural frequency "
+           "(second order) of the lag", "Hz", 0.5, 1000.0),
+        _p("damping_ratio", 0.7, "Damping ratio of the lag (form second_order)", "", 0.05,
+           5.0),
+    ],
     "valve_hysteresis": [
         _p("half_width", 0.25, "Hysteresis loop half-width (mean play threshold)", "V",
            0.0, 2.0),

@@ -66,11 +66,13 @@ def jetpipe_tf(p: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
     return num, den
 
 
-def valve_tf(p: Mapping[str, Any], extra_lag_hz: float | None = None
-             ) -> tuple[np.ndarray, np.ndarray]:
+def valve_tf(p: Mapping[str, Any], extra_lag_hz: float | None = None,
+             extra_lag_damping: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Unit-DC-gain valve chain G_lag(s) G_jp(s)/G_jp(0) [V/V], without the delay.
 
-    ``extra_lag_hz`` appends a first-order lag with that corner frequency (valve_lag effect).
+    ``extra_lag_hz`` appends a lag (valve_lag effect): first order, 1 / (s / w + 1), with that
+    corner frequency [Hz]; or, given ``extra_lag_damping`` zeta, second order,
+    w^2 / (s^2 + 2 zeta w s + w^2), with that natural frequency.
     """
     num_jp, den_jp = jetpipe_tf(p)
     num = num_jp * den_jp[-1] / num_jp[-1]
@@ -78,7 +80,10 @@ def valve_tf(p: Mapping[str, Any], extra_lag_hz: float | None = None
     num = np.polymul(num, [1.0 / wz, 1.0])
     den = np.polymul(den_jp, [1.0 / wp, 1.0])
     if extra_lag_hz is not None:
-        den = np.polymul(den, [1.0 / (2.0 * np.pi * extra_lag_hz), 1.0])
+        w = 2.0 * np.pi * extra_lag_hz
+        lag = ([1.0 / w, 1.0] if extra_lag_damping is None else
+               [1.0 / w**2, 2.0 * extra_lag_damping / w, 1.0])
+        den = np.polymul(den, lag)
     return num, den
 
 
@@ -95,7 +100,8 @@ class DiscreteValve:
 
 
 def discretise_valve(p: Mapping[str, Any], h: float, extra_lag_hz: float | None = None,
-                     extra_delay: float = 0.0) -> DiscreteValve:
+                     extra_delay: float = 0.0, extra_lag_damping: float | None = None
+                     ) -> DiscreteValve:
     """Discretise the valve chain at sub-step ``h`` [s]; the delay in whole sub-steps and a
     fraction of one (the kernel interpolates the delay line linearly between them, so the
     delay is continuous: a fit can move it by less than a sub-step).
@@ -105,7 +111,7 @@ def discretise_valve(p: Mapping[str, Any], h: float, extra_lag_hz: float | None 
     discretisation: treat its arrays as read-only.
     """
     values = tuple(p[name] for name in _CHAIN_PARAMS)
-    return _discretise(values, h, extra_lag_hz, extra_delay)
+    return _discretise(values, h, extra_lag_hz, extra_delay, extra_lag_damping)
 
 
 #: The parameters the discretised chain depends on (Eq. 4, 9, 10).
@@ -116,9 +122,9 @@ _CHAIN_PARAMS = ("valve.torque_constant", "valve.back_emf_constant", "valve.coil
 
 @lru_cache(maxsize=64)
 def _discretise(values: tuple[float, ...], h: float, extra_lag_hz: float | None,
-                extra_delay: float) -> DiscreteValve:
+                extra_delay: float, extra_lag_damping: float | None) -> DiscreteValve:
     p = dict(zip(_CHAIN_PARAMS, values))
-    num, den = valve_tf(p, extra_lag_hz)
+    num, den = valve_tf(p, extra_lag_hz, extra_lag_damping)
     a, b, c, d = signal.tf2ss(num, den)
     ad, bd, cd, dd, _ = signal.cont2discrete((a, b, c, d), h, method="zoh")
     steps = (p["valve.delay"] + extra_delay) / h
