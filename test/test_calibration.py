@@ -124,7 +124,7 @@ def test_a_joint_fit_grids_the_effect_from_a_given_base(off_bench):
     truth = {k.name: 1.0 for k in CALIBRATION.knobs} | {
         "flow_gain_charge": 0.9, "flow_gain_discharge": 0.9, "friction_entry": 1.3,
         "friction_exit": 1.3, "viscous_entry": 1.3, "viscous_exit": 1.3}
-    lag = group("valve_lag")
+    lag = group("valve_lag:first_order")
     base = np.concatenate([CALIBRATION.to_unit(truth), lag.start()])
     from_base = fit(prepared, NOMINAL, [CALIBRATION, lag], None, GRID, grid_base=base)
     assert from_base.evaluations == GRID

@@ -4,6 +4,7 @@ and which of calibration and effect the data need."""
 import numpy as np
 import pytest
 
+from jetpipe_ros.diagnosis.candidates import CANDIDATES
 from jetpipe_ros.diagnosis.fit import Fit
 from jetpipe_ros.diagnosis.score import Score
 from jetpipe_ros.diagnosis.verdict import decide, paired_t, rank, settle
@@ -18,9 +19,12 @@ def score(gap_pct):
                  count={"p1": 20000})
 
 
-def fit(name, gap_pct, windows):
+def fit(name, gap_pct, windows, **values):
+    """A fit of the candidates in ``name`` at their typical sizes (``values``: others, by
+    candidate)."""
     groups = tuple(name.split("+"))
-    values = {g: {"x": 1.0} for g in groups}
+    values = {g: {k.name: CANDIDATES[g].typical.get(k.name, k.off) for k in CANDIDATES[g].knobs}
+              | values.get(g, {}) for g in groups if g != "calibration"}
     if "calibration" in groups:
         values["calibration"] = {"flow_gain_charge": 0.9, "friction_exit": 1.3}
     return Fit(groups=groups, values=values, z=np.zeros(len(groups)), params=ModelParams(),
@@ -46,17 +50,17 @@ def test_paired_t_sees_a_consistent_improvement(rng):
 
 def test_clear_winner_is_named_with_high_confidence(rng):
     nom = windows(FLOOR + 4e-4, rng)
-    fits = [fit("valve_lag", 0.2, windows(FLOOR + 1e-5, rng)),
+    fits = [fit("valve_lag:first_order", 0.2, windows(FLOOR + 1e-5, rng)),
             fit("valve_delay", 1.2, windows(FLOOR + 1.5e-4, rng)),
-            fit("thermal", 2.0, nom)]
+            fit("thermal:polytropic", 2.0, nom)]
     v = decide(rank(fits, score(2.0), nom, 1e-3), score(2.0), nom, None)
-    assert v.winner.fit.name == "valve_lag" and not v.ambiguous
+    assert v.winner.fit.name == "valve_lag:first_order" and not v.ambiguous
     assert v.confidence > 0.85
 
 
 def test_two_equal_explanations_are_ambiguous(rng):
     nom = windows(FLOOR + 4e-4, rng)
-    fits = [fit("valve_lag", 0.50, windows(FLOOR + 2e-5, rng)),
+    fits = [fit("valve_lag:first_order", 0.50, windows(FLOOR + 2e-5, rng)),
             fit("valve_delay", 0.55, windows(FLOOR + 2.2e-5, rng))]
     v = decide(rank(fits, score(2.0), nom, 1e-3), score(2.0), nom, None)
     assert v.ambiguous and v.runner_up.fit.name == "valve_delay"
@@ -65,27 +69,27 @@ def test_two_equal_explanations_are_ambiguous(rng):
 
 def test_noise_level_gap_with_no_significant_fit_is_none(rng):
     nom = windows(FLOOR, rng, jitter=3e-5)
-    fits = [fit("valve_lag", 0.05, nom + 2e-5 * rng.standard_normal(20))]
+    fits = [fit("valve_lag:first_order", 0.05, nom + 2e-5 * rng.standard_normal(20))]
     v = decide(rank(fits, score(0.1), nom, 1e-3), score(0.1), nom, None)
     assert v.winner is None and "within what sensor noise explains" in v.reason
 
 
 def test_unexplained_gap_is_none_naming_the_reason(rng):
     nom = windows(FLOOR + 4e-4, rng)
-    fits = [fit("leakage", 1.8, windows(FLOOR + 3.2e-4, rng))]  # 10 % of the gap: too little
+    fits = [fit("leakage:laminar", 1.8, windows(FLOOR + 3.2e-4, rng))]  # 10 % of the gap: too little
     v = decide(rank(fits, score(2.0), nom, 1e-3), score(2.0), nom, None)
     assert v.winner is None and "not among the candidates" in v.reason
 
 
 def test_a_pair_must_remove_clearly_more_than_its_better_member(rng):
     nom = windows(FLOOR + 4e-4, rng)
-    single = fit("thermal", 0.80, windows(FLOOR + 6.4e-5, rng))
-    pair = fit("thermal+leakage", 0.75, windows(FLOOR + 5.6e-5, rng))
+    single = fit("thermal:polytropic", 0.80, windows(FLOOR + 6.4e-5, rng))
+    pair = fit("thermal:polytropic+leakage:laminar", 0.75, windows(FLOOR + 5.6e-5, rng))
     v = decide(rank([single, pair], score(2.0), nom, 1e-3), score(2.0), nom, None)
-    assert v.winner.fit.name == "thermal"
-    better_pair = fit("thermal+leakage", 0.1, windows(FLOOR + 1e-6, rng))
+    assert v.winner.fit.name == "thermal:polytropic"
+    better_pair = fit("thermal:polytropic+leakage:laminar", 0.1, windows(FLOOR + 1e-6, rng))
     v = decide(rank([single, better_pair], score(2.0), nom, 1e-3), score(2.0), nom, None)
-    assert v.winner.fit.name == "thermal+leakage"
+    assert v.winner.fit.name == "thermal:polytropic+leakage:laminar"
 
 
 def test_a_short_holdout_is_backed_by_the_cross_check(rng):
@@ -105,7 +109,7 @@ def test_a_short_holdout_is_backed_by_the_cross_check(rng):
     assert decide(ranking, score(0.1), nom, None).winner.fit.name == "friction_dynamics"
 
 
-def _settle(rng, cal_gap, on_cal_gap, alone_gap, effect="valve_lag"):
+def _settle(rng, cal_gap, on_cal_gap, alone_gap, effect="valve_lag:first_order"):
     """Nominal gap 2 %; the recalibration leaves ``cal_gap``; the effect on top of it leaves
     ``on_cal_gap``; the effect alone (nominal parameters) leaves ``alone_gap`` [%]."""
     level = lambda g: FLOOR + (g / 100) ** 2  # noqa: E731
@@ -133,7 +137,7 @@ def test_parameters_off_and_no_effect_is_a_calibration(rng):
 
 def test_parameters_off_and_an_effect_keep_both(rng):
     s = _settle(rng, cal_gap=1.0, on_cal_gap=0.05, alone_gap=1.0)
-    assert s.verdict.winner.fit.effects == ("valve_lag",) and s.calibrated
+    assert s.verdict.winner.fit.effects == ("valve_lag:first_order",) and s.calibrated
     assert s.final.calibrated and s.given.explains
     assert "were off" in s.reason
 
@@ -141,7 +145,7 @@ def test_parameters_off_and_an_effect_keep_both(rng):
 def test_an_effect_alone_drops_a_calibration_it_does_not_need(rng):
     # The recalibration stood in for part of the effect; given the effect it adds nothing.
     s = _settle(rng, cal_gap=1.0, on_cal_gap=0.05, alone_gap=0.05)
-    assert s.verdict.winner.fit.name == "valve_lag" and not s.calibrated
+    assert s.verdict.winner.fit.name == "valve_lag:first_order" and not s.calibrated
     assert not s.final.calibrated and not s.given.explains
 
 
@@ -172,12 +176,32 @@ def test_a_candidate_explaining_a_minority_of_a_gap_beyond_noise_is_not_the_caus
 
 def test_a_second_effect_is_named_when_it_pays_on_held_out_data(rng):
     nom = windows(FLOOR + 4e-4, rng)
-    single = fit("valve_lag", 1.0, windows(FLOOR + 1e-4, rng))
+    single = fit("valve_lag:first_order", 1.0, windows(FLOOR + 1e-4, rng))
     # The second effect removes 60 % of what the first leaves: a small share of the whole gap.
-    pair = fit("valve_lag+leakage", 0.4, windows(FLOOR + 1.6e-5, rng))
+    pair = fit("valve_lag:first_order+leakage:laminar", 0.4, windows(FLOOR + 1.6e-5, rng))
     v = decide(rank([single, pair], score(2.0), nom, 1e-3), score(2.0), nom, None)
-    assert v.winner.fit.name == "valve_lag+leakage"
+    assert v.winner.fit.name == "valve_lag:first_order+leakage:laminar"
     # Noise-level differences do not make a pair.
-    noise_pair = fit("valve_lag+leakage", 0.99, windows(FLOOR + 1e-4, rng))
+    noise_pair = fit("valve_lag:first_order+leakage:laminar", 0.99, windows(FLOOR + 1e-4, rng))
     v = decide(rank([single, noise_pair], score(2.0), nom, 1e-3), score(2.0), nom, None)
-    assert v.winner.fit.name == "valve_lag"
+    assert v.winner.fit.name == "valve_lag:first_order"
+
+
+def test_a_second_effect_pinned_at_the_edge_of_its_range_is_not_named(rng):
+    """A pair that pays, but with its second effect's leak to atmosphere at the far edge of its
+    range (a leak several times the largest typical one, soaking up what the first effect's
+    form misses): the single effect is the answer, and the reason says why the pair is not."""
+    nom = windows(FLOOR + 4e-4, rng)
+    single = fit("supply_pressure", 1.0, windows(FLOOR + 1e-4, rng))
+    area = CANDIDATES["leakage:orifice"].knobs[1]
+    pinned = fit("supply_pressure+leakage:orifice", 0.4, windows(FLOOR + 1.6e-5, rng),
+                 **{"leakage:orifice": {area.name: area.high}})
+    v = decide(rank([single, pinned], score(2.0), nom, 1e-3), score(2.0), nom, None)
+    assert v.winner.fit.name == "supply_pressure"
+    assert "leakage:orifice.atmosphere_area at the edge of its range" in v.reason
+    # Inside its range, or at the edge where the effect vanishes, the second effect is named.
+    for value in (0.5 * area.high, area.off):
+        inside = fit("supply_pressure+leakage:orifice", 0.4, windows(FLOOR + 1.6e-5, rng),
+                     **{"leakage:orifice": {area.name: value}})
+        v = decide(rank([single, inside], score(2.0), nom, 1e-3), score(2.0), nom, None)
+        assert v.winner.fit.name == "supply_pressure+leakage:orifice"

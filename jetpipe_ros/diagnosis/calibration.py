@@ -95,12 +95,7 @@ CALIBRATION = Calibration(NAME, (
 
 def at_bound(values: dict[str, float], tolerance: float = 0.01) -> list[str]:
     """Knobs whose fitted factor lies within ``tolerance`` (in log range) of a bound."""
-    out = []
-    for k in CALIBRATION.knobs:
-        z = k.to_unit(values[k.name])
-        if z <= tolerance or z >= 1.0 - tolerance:
-            out.append(k.name)
-    return out
+    return CALIBRATION.pinned(values, tolerance)
 
 
 def describe(values: dict[str, float], least: float = 0.02) -> list[str]:

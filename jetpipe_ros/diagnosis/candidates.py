@@ -6,9 +6,10 @@ Ranges are wider than the typical sizes of DESIGN.md s.3 so a real effect is not
 contains the value at which the effect vanishes (zero delay, hysteresis, leak, bias; n = 1; the
 nominal supply and mass; a corner, wall heat conductance or bristle stiffness high enough to be
 invisible), so a fit to data without the effect can land on "no effect". The forms the physics
-admits are candidates of their own, judged on held-out data like the effects: the thermal
-effect as a polytropic index or as gas temperatures exchanging heat with the walls; leaks as
-laminar conductances or compressible (choked) orifices, each across the piston and to
+admits are candidates of their own, judged on held-out data like the effects: the valve lag of
+first order (a corner) or second order (a natural frequency and a damping ratio); the
+thermal effect as a polytropic index or as gas temperatures exchanging heat with the walls;
+leaks as laminar conductances or compressible (choked) orifices, each across the piston and to
 atmosphere. Where forms blend continuously a knob spans them: the hysteresis is eight play
 operators whose thresholds spread from one sharp loop (spread 0) to a rounded
 Prandtl-Ishlinskii loop (spread 1).
@@ -36,6 +37,9 @@ class Knob:
     log: bool = False  #: search on a logarithmic scale
     #: other values of a later knob the starting grid also tries (a knob that selects a form)
     tries: tuple[float, ...] = ()
+    #: the range is the knob's whole physical extent (a form's spread from 0 to 1), not a search
+    #: limit: a fit at its edge is an answer, not a sign that the truth lies beyond
+    extent: bool = False
 
     def to_value(self, z: float) -> float:
         """Map z in [0, 1] onto the range."""
@@ -73,6 +77,18 @@ class KnobGroup:
         """The unit-scaled vector of ``values`` (inverse of :meth:`values`)."""
         return np.array([k.to_unit(values[k.name]) for k in self.knobs])
 
+    def pinned(self, values: dict[str, float], tolerance: float = 0.01) -> list[str]:
+        """Knobs fitted within ``tolerance`` (of the unit-scaled range) of an edge of their
+        search range: not the edge where the group changes nothing, nor the edge of a knob
+        whose range is its whole physical extent. The truth may lie beyond such a knob."""
+        out = []
+        for k in self.knobs:
+            z, z_off = k.to_unit(values[k.name]), k.to_unit(k.off)
+            edge = 0.0 if z <= tolerance else 1.0 if z >= 1.0 - tolerance else None
+            if edge is not None and not k.extent and abs(edge - z_off) > tolerance:
+                out.append(k.name)
+        return out
+
     def apply(self, params: ModelParams, values: dict[str, float]) -> ModelParams:
         """``params`` changed by this group at ``values``."""
         raise NotImplementedError
@@ -108,10 +124,13 @@ def effect_of(name: str) -> str:
 
 CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     Candidate("valve_delay", (Knob("delay", 0.0, 0.008, 0.0),), {"delay": 0.003}),
-    Candidate("valve_lag", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),),
-              {"corner_frequency": 30.0}),
+    Candidate("valve_lag:first_order", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),),
+              {"corner_frequency": 30.0}, {"form": "first_order"}),
+    Candidate("valve_lag:second_order", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),
+                                         Knob("damping_ratio", 0.2, 2.0, 0.7)),
+              {"corner_frequency": 30.0, "damping_ratio": 0.7}, {"form": "second_order"}),
     Candidate("valve_hysteresis", (Knob("half_width", 0.0, 0.6, 0.0),
-                                   Knob("spread", 0.0, 1.0, 0.0, tries=(1.0,))),
+                                   Knob("spread", 0.0, 1.0, 0.0, tries=(1.0,), extent=True)),
               {"half_width": 0.25, "spread": 0.0}, {"elements": 8}),
     Candidate("supply_pressure", (Knob("pressure", 4e5, 1.1e6, 1e6),), {"pressure": 8e5}),
     Candidate("thermal:polytropic", (Knob("polytropic_index", 1.0, 1.4, 1.0),),

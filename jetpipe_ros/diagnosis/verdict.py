@@ -11,8 +11,9 @@ confirms it: the candidate refitted on the holdout and judged on the training da
 fold of a two-fold cross-validation, both judgements out of sample) gives a t that, combined with
 the first by Stouffer's rule, (t + t_cross) / sqrt(2) >= :data:`MIN_T`. Candidates are ranked
 by a Bayesian information criterion over the held-out error with one sample per signal and
-window, so an extra parameter must pay for itself; a pair must also remove :data:`PAIR_GAIN`
-more of the gap than its better member, with significance, or the single effect is preferred.
+window, so an extra parameter must pay for itself; a pair must also remove :data:`MIN_SHRINKAGE`
+of what its better member leaves, with significance, and its second effect must not sit at the
+edge of its search range (:func:`pair_pays`), or the single effect is preferred.
 
 The answer is ``none`` when no candidate explains the gap: either the nominal gap is within
 noise, or its cause is not among the candidates. Two
@@ -38,6 +39,7 @@ from scipy import stats
 
 from jetpipe_ros.diagnosis.calibration import NAME as CALIBRATION
 from jetpipe_ros.diagnosis.calibration import describe
+from jetpipe_ros.diagnosis.candidates import CANDIDATES
 from jetpipe_ros.diagnosis.fit import Fit
 from jetpipe_ros.diagnosis.score import Score, effective_samples
 from jetpipe_ros.model import EFFECTS
@@ -154,21 +156,43 @@ def needs_pairs(best: Ranked, floor_windows: np.ndarray | None) -> bool:
     return left_beyond_noise(best.fit.holdout, best.fit.holdout_windows, floor_windows)
 
 
+def _better_single(pair: Ranked, ranking: Sequence[Ranked]) -> Ranked | None:
+    singles = [r for r in ranking if len(r.fit.effects) == 1 and r.fit.effects[0] in
+               pair.fit.effects]
+    return min(singles, key=lambda r: r.fit.holdout.total) if singles else None
+
+
+def pinned_second(pair: Ranked, ranking: Sequence[Ranked]) -> list[str]:
+    """The knobs of the pair's second effect (the member beside its better single one) that
+    sit at the far edge of their search range (:meth:`KnobGroup.pinned`), as
+    ``candidate.knob``.
+
+    The ranges reach several times beyond the largest typical size of DESIGN.md s.3, and the
+    second effect of a pair is the weaker one: fitted at such an edge it measures nothing, it
+    compensates what the first effect's form misses (seen on a plant whose supply droops with
+    the flow drawn: the pressure sensors' gain error driven to the range's 5 %, where the
+    plant's sensors are exact)."""
+    best = _better_single(pair, ranking)
+    first = best.fit.effects if best is not None else ()
+    return [f"{g}.{k}" for g in pair.fit.effects if g not in first
+            for k in CANDIDATES[g].pinned(pair.fit.values[g])]
+
+
 def pair_pays(pair: Ranked, ranking: Sequence[Ranked]) -> bool:
     """A pair is named only when its second effect pays for itself on held-out data: the pair
     removes at least :data:`MIN_SHRINKAGE` of what its better single member leaves, and that
     improvement is significant (paired t >= :data:`MIN_T` over the windows, or more than the
-    whole noise floor)."""
-    singles = [r for r in ranking if len(r.fit.effects) == 1 and r.fit.effects[0] in
-               pair.fit.effects]
-    if not singles:
+    whole noise floor), with the second effect's knobs inside their search ranges
+    (:func:`pinned_second`)."""
+    best = _better_single(pair, ranking)
+    if best is None:
         return True
-    best = min(singles, key=lambda r: r.fit.holdout.total)
     left = best.fit.holdout
     shrink = 1.0 - pair.fit.holdout.gap / left.gap if left.gap > 0 else 0.0
     t = paired_t(best.fit.holdout_windows, pair.fit.holdout_windows)
     removed = (left.total - pair.fit.holdout.total) / max(left.noise_total, 1e-300)
-    return shrink >= MIN_SHRINKAGE and (t >= MIN_T or removed >= 1.0)
+    return (shrink >= MIN_SHRINKAGE and (t >= MIN_T or removed >= 1.0)
+            and not pinned_second(pair, ranking))
 
 
 @dataclass
@@ -230,6 +254,14 @@ def decide(ranking: Sequence[Ranked], base: Score, base_windows: np.ndarray,
     confidence = _clip(win.shrinkage) * margin
     reason = (f"{win.fit.name} removes {win.shrinkage:.0%} of the held-out gap "
               f"({base.gap:.2f} % -> {win.fit.holdout.gap:.2f} %)")
+    compensating = [r for r in ranking if len(r.fit.effects) > len(win.fit.effects)
+                    and set(win.fit.effects) <= set(r.fit.effects) and r.explains
+                    and r.fit.holdout.gap < win.fit.holdout.gap and pinned_second(r, ranking)]
+    if compensating:
+        r = compensating[0]
+        reason += (f"; {r.fit.name} leaves less ({r.fit.holdout.gap:.2f} %), but with "
+                   f"{', '.join(pinned_second(r, ranking))} at the edge of its range: taken as "
+                   f"compensating what the form of {win.fit.name} misses, not named")
     if ambiguous and runner is not None:
         reason += (f"; {runner.fit.name} explains the data almost as well "
                    f"({runner.shrinkage:.0%}): these experiments cannot tell them apart")
