@@ -205,3 +205,24 @@ def test_a_second_effect_pinned_at_the_edge_of_its_range_is_not_named(rng):
                      **{"leakage:orifice": {area.name: value}})
         v = decide(rank([single, inside], score(2.0), nom, 1e-3), score(2.0), nom, None)
         assert v.winner.fit.name == "supply_pressure+leakage:orifice"
+
+
+def test_a_pair_member_back_where_it_vanishes_is_found():
+    """diagnose.vanished: a joint refit that put the supply back at 10 bar left the leak doing
+    the work (the pair is the leak alone, refitted without the supply); a member that still
+    acts, even slightly, or a single effect, is not taken out."""
+    from jetpipe_ros.diagnosis.calibration import CALIBRATION
+    from jetpipe_ros.diagnosis.diagnose import vanished
+
+    def joint(supply_pa):
+        f = fit("calibration+supply_pressure+leakage:orifice", 0.1, np.zeros(3),
+                supply_pressure={"pressure": supply_pa},
+                **{"leakage:orifice": {"cross_area": 6e-8, "atmosphere_area": 0.0}})
+        z = [CALIBRATION.start()] + [CANDIDATES[g].to_unit(f.values[g]) for g in f.effects]
+        f.z = np.concatenate(z)
+        return f
+
+    assert vanished(joint(0.9997e6)) == ["supply_pressure"]
+    assert vanished(joint(0.97e6)) == []
+    single = fit("leakage:orifice", 0.1, np.zeros(3), **{"leakage:orifice": {"cross_area": 0.0}})
+    assert vanished(single) == []

@@ -142,10 +142,15 @@ def _removed(base: Score, fitted: Score) -> float:
 
 
 def fit_pairs(fitter: Fitter, nominal: ModelParams, best: Fit, names: Sequence[str],
-              progress: Callable[[str], None]) -> list[Fit]:
+              progress: Callable[[str], None]) -> tuple[list[Fit], list[Fit]]:
     """Pairs by forward selection: every other candidate fitted on top of the best (held at its
     fitted values, calibration included), the :data:`PAIR_POOL` that lower the training error
-    most then refitted jointly with it. Selection uses the training data only."""
+    most then refitted jointly with it. Selection uses the training data only.
+
+    A joint refit may switch its first member off (every knob back where the effect vanishes)
+    and leave the other doing the work: that pair is the other effect alone, from a start its
+    own fit did not reach, so it is refitted without the vanished member from there. Returns the
+    pairs and those refitted singles."""
     others = [e for e in names if effect_of(e) not in best.effect_names]
     progress(f"{best.name} leaves {best.holdout.gap:.2f} % of the gap: fitting each other "
              f"candidate on top of it")
@@ -153,7 +158,24 @@ def fit_pairs(fitter: Fitter, nominal: ModelParams, best: Fit, names: Sequence[s
                                                  [f"{e} on top" for e in others])]
     chosen = sorted(added, key=lambda f: f.train.total)[:PAIR_POOL]
     progress(f"refitting {', '.join(f.name for f in chosen)} jointly")
-    return fitter.run([Job(nominal, f.groups, f.z, JOINT_BUDGET) for f in chosen])
+    pairs = fitter.run([Job(nominal, f.groups, f.z, JOINT_BUDGET) for f in chosen])
+    reduced = [(f, [g for g in f.groups if g not in vanished(f)]) for f in pairs if vanished(f)]
+    if not reduced:
+        return pairs, []
+    gone = [f"{' and '.join(vanished(f))} vanished from {f.name}" for f, _ in reduced]
+    progress(f"{', '.join(gone)}: refitting the rest from there")
+    return pairs, fitter.run([Job(nominal, tuple(kept), np.concatenate(
+        [f.knobs_by_group()[g] for g in kept]), JOINT_BUDGET) for f, kept in reduced])
+
+
+def vanished(f: Fit, tolerance: float = 0.01) -> list[str]:
+    """The effects of a fit with more than one whose knobs all sit within ``tolerance`` (of
+    the unit-scaled range) of where the effect vanishes: there, but doing nothing."""
+    if len(f.effects) < 2:
+        return []
+    z = f.knobs_by_group()
+    return [g for g in f.effects
+            if np.max(np.abs(z[g] - calibration.group(g).start())) <= tolerance]
 
 
 def cross_check(rows: Sequence[Ranked], fitter: Fitter, nominal: ModelParams, nom_preds,
@@ -320,7 +342,9 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
         ranking = rank(on_cal, cal.holdout, cal.holdout_windows, dt)
         floor = prepared.floor_windows
         if ranking and needs_pairs(ranking[0], floor):
-            on_cal += fit_pairs(fitter, nominal, ranking[0].fit, names, progress)
+            pairs, singles = fit_pairs(fitter, nominal, ranking[0].fit, names, progress)
+            on_cal = [min([f, *(s for s in singles if s.name == f.name)],
+                          key=lambda x: x.train.total) for f in on_cal] + pairs
             ranking = rank(on_cal, cal.holdout, cal.holdout_windows, dt)
         cross_check([cal_row, *ranking[:2], *alone_ranking[:2]], fitter, nominal, nom_all,
                     progress)

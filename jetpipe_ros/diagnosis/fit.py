@@ -64,6 +64,11 @@ class Fit:
         return {effect_of(g): CANDIDATES[g].form for g in self.effects
                 if CANDIDATES[g].form is not None}
 
+    def knobs_by_group(self) -> dict[str, np.ndarray]:
+        """The unit-scaled knobs of each group."""
+        sizes = np.cumsum([len(group(g).knobs) for g in self.groups])[:-1]
+        return dict(zip(self.groups, np.split(self.z, sizes)))
+
     def effect_values(self) -> dict[str, dict[str, float]]:
         """The fitted parameters by effect name (calibration knobs left out)."""
         return {effect_of(g): self.values[g] for g in self.effects}
