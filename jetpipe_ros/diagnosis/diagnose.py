@@ -383,6 +383,8 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
         "frequency": frequency_response(prepared, preds),
         "equations": equations,
     }
+    if settled.unlisted and final is not None:
+        localization["subsystems_final"] = subsystem_gaps(prepared, augmented)
     verdict = settled.verdict
     separating = None
     if settled.alternative is not None:
@@ -404,8 +406,9 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
 def _subsystem_of(localization: dict) -> str:
     """With no equation beyond noise: the subsystem whose replay with measured inputs (valve
     and chambers driven by the measured motion, mechanics by the measured pressures) leaves the
-    larger gap."""
-    sub = localization["subsystems"]
+    larger gap, replayed on the final model (the recalibrated one, when the gap left is what
+    remains after recalibration: mis-set friction would otherwise point at the mechanics)."""
+    sub = localization.get("subsystems_final") or localization["subsystems"]
     chambers = sub["valve_and_chambers"]["gap"]
     mechanics = sub["mechanics"]["gap"] if sub["mechanics"] else 0.0
     return "mechanics" if mechanics > chambers else "valve+chamber"
