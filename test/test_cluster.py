@@ -7,12 +7,14 @@ import functools
 import json
 import shutil
 
+import dask
 import pytest
 from distributed import LocalCluster
 
 from jetpipe_ros.cli import main
 from jetpipe_ros.dataset import DatasetError
 from jetpipe_ros.diagnosis import selfcheck
+from jetpipe_ros.diagnosis.cluster import WORKER_CONFIG
 from jetpipe_ros.diagnosis.fleet import dataset_dirs, names_of
 from jetpipe_ros.model import ModelParams
 from test_diagnosis import make_dataset
@@ -21,9 +23,12 @@ from test_diagnosis import make_dataset
 @pytest.fixture(scope="module")
 def scheduler():
     """A running cluster of two single-threaded worker processes, reached by its address as a
-    remote one would be (``--scheduler``)."""
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster:
+    remote one would be (``--scheduler``); its workers set up as the README tells for workers
+    started by hand (and as the package starts its local ones): no statistical profiler."""
+    with dask.config.set(WORKER_CONFIG):  # passed on to the worker processes
+        cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+    with cluster:
         yield cluster.scheduler_address
 
 
