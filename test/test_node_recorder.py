@@ -93,8 +93,9 @@ def test_bag_is_readable_by_rosbags_and_mcap(campaign_bag):
     assert {"/rec/position", "/rec/chamber1/pressure", "/rec/voltage_applied", "/clock",
             "/rec/voltage_cmd", "/rec/position_setpoint", EVENTS_TOPIC} <= set(counts)
     (mcap_file,) = bag.glob("*.mcap")
-    with open(mcap_file, "rb") as f:
-        n = sum(1 for _ in make_reader(f).iter_messages())
+    with open(mcap_file, "rb") as f:  # every message read and decoded, in file order (merging
+        # the chunks into log-time order as well doubled the time: 14 s against 7 s here)
+        n = sum(1 for _ in make_reader(f).iter_messages(log_time_order=False))
     assert n == total > 90_000 * 5
 
 
