@@ -46,10 +46,10 @@ def make_dataset(root, params, seed=0, roles=True):
 # Where the diagnosis runs: the verdict and the numbers do not depend on it (the same functions
 # run in a worker as here), so the tests about what it finds run in this process (workers=1,
 # --jobs 1): on a 2-core machine a local Dask cluster only adds its start and slower evaluations
-# (README, Scaling out), up to 2.5 x the time of one of these diagnoses on a busy machine. This
-# fixture keeps 2 local workers, so fits spread over a local cluster stay tested, and
-# test_bad_datasets_get_clear_errors_and_leave_no_output the default --jobs (a cluster started,
-# then closed on an early error).
+# (README, Scaling out), up to 2.5 x the time of one of these diagnoses on a busy machine; the
+# refusals of bad input come before any fit, where a cluster would only be started to be
+# closed. This fixture keeps 2 local workers: a local cluster started, the fits spread over it,
+# the cluster closed, stay tested.
 @pytest.fixture(scope="module")
 def lag_result(tmp_path_factory):
     root = tmp_path_factory.mktemp("lag")
@@ -217,7 +217,8 @@ def test_bad_datasets_get_clear_errors_and_leave_no_output(tmp_path, capsys):
     lines[100] = lines[100].replace(lines[100].split(",")[3], "nan", 1)
     csv.write_text("\n".join(lines) + "\n")
     out = tmp_path / "out"
-    assert main(["diagnose", str(tmp_path / "data"), "--out", str(out), "--quiet"]) == 2
+    assert main(["diagnose", str(tmp_path / "data"), "--out", str(out), "--quiet",
+                 "--jobs", "1"]) == 2  # in this process: see lag_result
     assert "sweep.csv: line 101, column 'p1'" in capsys.readouterr().err
     assert not out.exists()
     # Everything held out: no training data.

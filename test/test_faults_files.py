@@ -306,8 +306,8 @@ def test_tools_refuse_impossible_values_and_write_nothing(tmp_path, command, cap
     root = make_dataset(tmp_path / "d", p1=_set(10, 1e300))
     out = tmp_path / ("out" if command == "diagnose" else "p.yaml")
     # diagnose in this process: with the default --jobs it would start a local Dask cluster in
-    # the background only to close it after the refusal (about 10 s here; that path is
-    # test_diagnosis.test_bad_datasets_get_clear_errors_and_leave_no_output's).
+    # the background only to close it after the refusal (about 10 s here; a local cluster
+    # started, used and closed: test_diagnosis's lag_result).
     jobs = ["--jobs", "1"] if command == "diagnose" else []
     assert main([command, str(root), "--out", str(out), *jobs]) == 2
     (error,) = [line for line in capsys.readouterr().err.splitlines() if "error:" in line]
