@@ -1,5 +1,5 @@
 """The diagnosis's work on a Dask cluster: a self-check's cases spread over two local workers,
-resumed after an interruption; a fleet of three datasets, one of them bad."""
+resumed after an interruption and scored; a fleet of three datasets, one of them bad."""
 
 from __future__ import annotations
 
@@ -7,12 +7,15 @@ import functools
 import json
 import shutil
 
+import dask
 import pytest
+import yaml
 from distributed import LocalCluster
 
 from jetpipe_ros.cli import main
 from jetpipe_ros.dataset import DatasetError
 from jetpipe_ros.diagnosis import selfcheck
+from jetpipe_ros.diagnosis.cluster import WORKER_CONFIG
 from jetpipe_ros.diagnosis.fleet import dataset_dirs, names_of
 from jetpipe_ros.model import ModelParams
 from test_diagnosis import make_dataset
@@ -21,64 +24,87 @@ from test_diagnosis import make_dataset
 @pytest.fixture(scope="module")
 def scheduler():
     """A running cluster of two single-threaded worker processes, reached by its address as a
-    remote one would be (``--scheduler``)."""
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster:
+    remote one would be (``--scheduler``); its workers set up as the README tells for workers
+    started by hand (and as the package starts its local ones): no statistical profiler."""
+    with dask.config.set(WORKER_CONFIG):  # passed on to the worker processes
+        cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+    with cluster:
         yield cluster.scheduler_address
 
 
 def _build(log, truth, root, seed):
-    """The small campaign of test_diagnosis; logs each case it records (the workers are other
-    processes: a file tells what they did); case 2 fails while ``log``.stop exists."""
+    """The small campaign of test_diagnosis; logs each case it records and the dataset index it
+    wrote (the workers are other processes: files tell what they did); case 1 fails while
+    ``log``.stop exists."""
     with open(log, "a") as f:
         f.write(root.name + "\n")
-    if root.name == "case02" and log.with_suffix(".stop").exists():
+    if root.name == "case01" and log.with_suffix(".stop").exists():
         raise RuntimeError("interrupted")
     make_dataset(root, truth, seed=seed % 1000)
+    with open(log.with_suffix(".index"), "a") as f:
+        f.write(json.dumps(yaml.safe_load((root / "dataset.yaml").read_text())) + "\n")
 
 
 def test_selfcheck_cases_run_on_the_cluster_and_resume(tmp_path, monkeypatch, scheduler):
+    """Two model truths, none and a valve lag (the cases of seed 2), on the cluster: the lag's
+    case is interrupted, the run resumed; then the scoring of both (withheld truths found,
+    `none` scored as specified, the lag's corner frequency recovered, nothing leaked)."""
     monkeypatch.setitem(selfcheck.KINDS, "model", ("none", "valve_lag"))
     log = tmp_path / "recorded.log"
     log.with_suffix(".stop").touch()
     build = functools.partial(_build, log)
     out = tmp_path / "out"
-    run = functools.partial(selfcheck.run_selfcheck, 3, 2, build, out, deviate=False,
+    run = functools.partial(selfcheck.run_selfcheck, 2, 2, build, out, deviate=False,
                             source="model", scheduler=scheduler)
-    with pytest.raises(selfcheck.SelfcheckError, match="1 of 3 cases failed.*case 2.*"
+    with pytest.raises(selfcheck.SelfcheckError, match="1 of 2 cases failed.*case 1.*"
                                                        "interrupted.*run the same command"):
         run(progress=lambda line: None)
-    assert sorted(log.read_text().split()) == ["case00", "case01", "case02"]
-    assert [p.parent.name for p in sorted(out.glob("cases/*/result.json"))] == ["case00",
-                                                                                "case01"]
+    assert sorted(log.read_text().split()) == ["case00", "case01"]
+    assert [p.parent.name for p in sorted(out.glob("cases/*/result.json"))] == ["case00"]
     assert not (out / "selfcheck.json").exists()
 
     log.with_suffix(".stop").unlink()
     lines = []
     summary = run(progress=lines.append)
-    assert log.read_text().split()[3:] == ["case02"]  # only the third is computed
-    assert lines[0].startswith("resuming: 2 of 3 cases already done")
-    assert lines[-1].startswith("[3/3]") and "left" in lines[-1]
-    assert summary["resumed"] == 2 and summary["ran_on"] == f"the Dask scheduler at {scheduler}"
-    assert [r["truth"] for r in summary["results"]] == ["none", "valve_lag", "none"]
-    assert summary["results"][1]["verdict"] == "valve_lag"
+    assert log.read_text().split()[2:] == ["case01"]  # only the second is computed
+    assert len(lines) == 2 and lines[0].startswith("resuming: 1 of 2 cases already done")
+    assert lines[-1].startswith("[2/2]") and "left" in lines[-1] and "valve_lag" in lines[-1]
+    assert summary["resumed"] == 1 and summary["ran_on"] == f"the Dask scheduler at {scheduler}"
+    assert [r["truth"] for r in summary["results"]] == ["none", "valve_lag"]
+    assert [r["verdict"] for r in summary["results"]] == ["none", "valve_lag"]
+    assert summary["top1_accuracy"] == 1.0 and summary["none_correct"]
+    assert summary["results"][1]["shrinkage"] >= 0.9
+    (rec,) = summary["recovery"]
+    assert rec["param"] == "corner_frequency" and rec["rel_error"] < 0.1
+    assert summary["confusion"]["valve_lag"]["valve_lag"] == 1
     by_truth = summary["accuracy_by_truth"]
-    assert by_truth["none"]["cases"] == 2 and by_truth["valve_lag"]["cases"] == 1
+    assert by_truth["none"]["cases"] == 1 and by_truth["valve_lag"]["cases"] == 1
     for a in [*by_truth.values(), *summary["accuracy_by_kind"].values()]:
         lo, hi = a["interval"]
         assert 0.0 <= lo <= a["accuracy"] <= hi <= 1.0 and hi - lo > 0.2  # few cases: wide
     q = summary["shrinkage_quantiles"]
     assert q["cases"] >= 1 and q["min"] <= q["median"] <= q["max"]
     md = (out / "selfcheck.md").read_text()
+    assert md.startswith("# jetpipe selfcheck: 2 cases") and "from the model" in md
     assert "Wilson interval" in md and selfcheck.SHRINKAGE_PNG in md
     assert (out / selfcheck.SHRINKAGE_PNG).read_bytes()[:4] == b"\x89PNG"
-    assert json.loads((out / "selfcheck.json").read_text())["cases"] == 3
+    assert json.loads((out / "selfcheck.json").read_text())["cases"] == 2
+    assert (out / "cases" / "case01" / "diagnosis.json").exists()
+    assert "valve_lag" in (out / "cases" / "case01" / "truth.yaml").read_text()
+    # The diagnosis saw only measurements: the dataset index carries no truth.
+    written = [json.loads(line) for line in log.with_suffix(".index").read_text().splitlines()]
+    assert len(written) == 2
+    for index in written:
+        assert set(index) == {"experiments"}
+        assert all(set(e) <= {"file", "piston", "load_force", "role"}
+                   for e in index["experiments"])
 
     # Another configuration in the same OUT is refused before anything runs.
     with pytest.raises(selfcheck.SelfcheckError, match="--seed 2 .*not.*--seed 3.*--restart"):
-        selfcheck.run_selfcheck(3, 3, build, out, deviate=False, source="model",
+        selfcheck.run_selfcheck(2, 3, build, out, deviate=False, source="model",
                                 scheduler=scheduler, progress=lambda line: None)
-    assert len(log.read_text().split()) == 4
+    assert len(log.read_text().split()) == 3
 
 
 def test_fleet_diagnoses_every_dataset_and_reports_the_bad_one(tmp_path, scheduler):

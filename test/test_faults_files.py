@@ -305,7 +305,11 @@ def test_valid_dataset_passes(tmp_path):
 def test_tools_refuse_impossible_values_and_write_nothing(tmp_path, command, capsys):
     root = make_dataset(tmp_path / "d", p1=_set(10, 1e300))
     out = tmp_path / ("out" if command == "diagnose" else "p.yaml")
-    assert main([command, str(root), "--out", str(out)]) == 2
+    # diagnose in this process: with the default --jobs it would start a local Dask cluster in
+    # the background only to close it after the refusal (about 10 s here; a local cluster
+    # started, used and closed: test_diagnosis's lag_result).
+    jobs = ["--jobs", "1"] if command == "diagnose" else []
+    assert main([command, str(root), "--out", str(out), *jobs]) == 2
     (error,) = [line for line in capsys.readouterr().err.splitlines() if "error:" in line]
     assert "column 'p1'" in error and "1e+300" in error
     assert sorted(p.name for p in tmp_path.iterdir()) == ["d"]
