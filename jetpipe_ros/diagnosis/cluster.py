@@ -34,11 +34,18 @@ from jetpipe_ros.model import ParameterError
 
 #: How long to try reaching a scheduler before giving up [s].
 CONNECT_TIMEOUT_S = 10
-#: Settings of local workers: no statistical profiler. It samples the task thread's stack every
+#: Settings of local workers. No statistical profiler: it samples the task thread's stack every
 #: 10 ms, and a fit's evaluations, many short calls into numba kernels, ran about 15 % slower
 #: with it (measured: ``predict_all`` 35 ms in this process, 41-50 ms in a worker with it,
-#: 38-41 ms without). Workers started by hand take it from ``DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False``.
-WORKER_CONFIG = {"distributed.worker.profile.enabled": False}
+#: 38-41 ms without). Workers started by hand take it from
+#: ``DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False``. And the environment Dask gives its
+#: worker processes without ``MALLOC_TRIM_THRESHOLD_``: setting it at all turns off glibc's
+#: dynamic mmap threshold, so every array of a simulation's size is mapped and unmapped afresh
+#: (measured: ``predict_all`` 36-40 ms in a plain process, 51 ms with the variable at Dask's
+#: 65536). The one-thread settings for the numerical libraries stay.
+WORKER_CONFIG = {"distributed.worker.profile.enabled": False,
+                 "distributed.nanny.pre-spawn-environ": {
+                     "OMP_NUM_THREADS": 1, "MKL_NUM_THREADS": 1, "OPENBLAS_NUM_THREADS": 1}}
 
 
 class ClusterError(ParameterError):
