@@ -55,7 +55,10 @@ def test_any_split_into_calls_gives_the_same_bits(changes):
 
 
 def test_valve_chain_with_every_effect_fits_the_kernel():
-    """Eq. 4 (third order), Eq. 9 (lead-lag) and the valve_lag effect: the padded chain's size."""
-    c = Actuator(P.with_values({"effects.valve_lag.enabled": True})).constants
+    """Eq. 4 (third order), Eq. 9 (lead-lag) and the valve_lag effect (second order at most):
+    the padded chain's size."""
+    lag = {"effects.valve_lag.enabled": True}
+    c = Actuator(P.with_values(lag | {"effects.valve_lag.form": "second_order"})).constants
     assert c.valve_b.shape[0] == kernel.VALVE_ORDER
-    assert Actuator(P).constants.valve_b.shape[0] == kernel.VALVE_ORDER - 1
+    assert Actuator(P.with_values(lag)).constants.valve_b.shape[0] == kernel.VALVE_ORDER - 1
+    assert Actuator(P).constants.valve_b.shape[0] == kernel.VALVE_ORDER - 2
