@@ -159,13 +159,17 @@ def fit_pairs(fitter: Fitter, nominal: ModelParams, best: Fit, names: Sequence[s
     chosen = sorted(added, key=lambda f: f.train.total)[:PAIR_POOL]
     progress(f"refitting {', '.join(f.name for f in chosen)} jointly")
     pairs = fitter.run([Job(nominal, f.groups, f.z, JOINT_BUDGET) for f in chosen])
-    reduced = [(f, [g for g in f.groups if g not in vanished(f)]) for f in pairs if vanished(f)]
+    reduced = [(f, off) for f in pairs if (off := vanished(f))]
     if not reduced:
         return pairs, []
-    gone = [f"{' and '.join(vanished(f))} vanished from {f.name}" for f, _ in reduced]
+    gone = [f"{' and '.join(off)} vanished from {f.name}" for f, off in reduced]
     progress(f"{', '.join(gone)}: refitting the rest from there")
-    return pairs, fitter.run([Job(nominal, tuple(kept), np.concatenate(
-        [f.knobs_by_group()[g] for g in kept]), JOINT_BUDGET) for f, kept in reduced])
+    jobs = []
+    for f, off in reduced:
+        kept = tuple(g for g in f.groups if g not in off)
+        z = f.knobs_by_group()
+        jobs.append(Job(nominal, kept, np.concatenate([z[g] for g in kept]), JOINT_BUDGET))
+    return pairs, fitter.run(jobs)
 
 
 def vanished(f: Fit, tolerance: float = 0.01) -> list[str]:

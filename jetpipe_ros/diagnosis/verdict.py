@@ -254,14 +254,15 @@ def decide(ranking: Sequence[Ranked], base: Score, base_windows: np.ndarray,
     confidence = _clip(win.shrinkage) * margin
     reason = (f"{win.fit.name} removes {win.shrinkage:.0%} of the held-out gap "
               f"({base.gap:.2f} % -> {win.fit.holdout.gap:.2f} %)")
-    compensating = [r for r in ranking if len(r.fit.effects) > len(win.fit.effects)
+    compensating = [(r, pinned) for r in ranking if len(r.fit.effects) > len(win.fit.effects)
                     and set(win.fit.effects) <= set(r.fit.effects) and r.explains
-                    and r.fit.holdout.gap < win.fit.holdout.gap and pinned_second(r, ranking)]
+                    and r.fit.holdout.gap < win.fit.holdout.gap
+                    and (pinned := pinned_second(r, ranking))]
     if compensating:
-        r = compensating[0]
+        r, pinned = compensating[0]
         reason += (f"; {r.fit.name} leaves less ({r.fit.holdout.gap:.2f} %), but with "
-                   f"{', '.join(pinned_second(r, ranking))} at the edge of its range: taken as "
-                   f"compensating what the form of {win.fit.name} misses, not named")
+                   f"{', '.join(pinned)} at the edge of its range: taken as compensating what "
+                   f"the form of {win.fit.name} misses, not named")
     if ambiguous and runner is not None:
         reason += (f"; {runner.fit.name} explains the data almost as well "
                    f"({runner.shrinkage:.0%}): these experiments cannot tell them apart")
