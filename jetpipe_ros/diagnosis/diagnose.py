@@ -19,7 +19,7 @@ from __future__ import annotations
 import dataclasses
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -141,24 +141,33 @@ def _removed(base: Score, fitted: Score) -> float:
     return (base.total - fitted.total) / max(base.noise_total, 1e-300)
 
 
-def fit_pairs(fitter: Fitter, nominal: ModelParams, best: Fit, names: Sequence[str],
-              progress: Callable[[str], None]) -> tuple[list[Fit], list[Fit]]:
-    """Pairs by forward selection: every other candidate fitted on top of the best (held at its
-    fitted values, calibration included), the :data:`PAIR_POOL` that lower the training error
-    most then refitted jointly with it. Selection uses the training data only.
+def fit_pairs(fitter: Fitter, nominal: ModelParams, best: Fit, singles: Mapping[str, Fit],
+              names: Sequence[str], progress: Callable[[str], None]
+              ) -> tuple[list[Fit], list[Fit]]:
+    """Pairs by floating forward selection: every other candidate fitted on top of the best
+    single ``best`` (held at its fitted values, calibration included), the :data:`PAIR_POOL`
+    that lower the training error most refitted jointly with it; then the same again from the
+    second member of each of those pairs (its single fit in ``singles``, by candidate), the best
+    single and the pairs already fitted left out. Selection uses the training data only.
 
-    A joint refit may switch its first member off (every knob back where the effect vanishes)
-    and leave the other doing the work: that pair is the other effect alone, from a start its
-    own fit did not reach, so it is refitted without the vanished member from there. Returns the
-    pairs and those refitted singles."""
-    others = [e for e in names if effect_of(e) not in best.effect_names]
-    progress(f"{best.name} leaves {best.holdout.gap:.2f} % of the gap: fitting each other "
-             f"candidate on top of it")
-    added = [stacked(best, f) for f in fitter.run([Job(best.params, (e,)) for e in others],
-                                                 [f"{e} on top" for e in others])]
-    chosen = sorted(added, key=lambda f: f.train.total)[:PAIR_POOL]
-    progress(f"refitting {', '.join(f.name for f in chosen)} jointly")
-    pairs = fitter.run([Job(nominal, f.groups, f.z, JOINT_BUDGET) for f in chosen])
+    The second round is there because the best single may be a stand-in: a strong effect plus a
+    weak one can be fitted better by a third candidate that mimics both at once (a 3.9 ms delay
+    plus a weak leak to atmosphere, fitted best alone as a pressure sensor with a 0.8 % gain
+    error and a bias), and forward selection from it then pairs the stand-in with the strong
+    effect and never tries the weak one beside it.
+
+    A joint refit may switch a member off (every knob back where the effect vanishes) and leave
+    the other doing the work: that pair is the other effect alone, from a start its own fit did
+    not reach, so it is refitted without the vanished member from there. Returns the pairs and
+    those refitted singles."""
+    pairs = _grow(fitter, nominal, best, [e for e in names
+                                          if effect_of(e) not in best.effect_names], progress)
+    for pair in list(pairs):
+        (second,) = [g for g in pair.effects if g not in best.effects]
+        base = singles[second]
+        pairs += _grow(fitter, nominal, base, [e for e in names if e not in best.effects and
+                                               effect_of(e) not in base.effect_names
+                                               and not _fitted(pairs, (second, e))], progress)
     reduced = [(f, off) for f in pairs if (off := vanished(f))]
     if not reduced:
         return pairs, []
@@ -170,6 +179,24 @@ def fit_pairs(fitter: Fitter, nominal: ModelParams, best: Fit, names: Sequence[s
         z = f.knobs_by_group()
         jobs.append(Job(nominal, kept, np.concatenate([z[g] for g in kept]), JOINT_BUDGET))
     return pairs, fitter.run(jobs)
+
+
+def _fitted(pairs: Sequence[Fit], members: tuple[str, str]) -> bool:
+    """Whether a pair of these two candidates is among ``pairs``."""
+    return any(set(f.effects) == set(members) for f in pairs)
+
+
+def _grow(fitter: Fitter, nominal: ModelParams, base: Fit, others: Sequence[str],
+          progress: Callable[[str], None]) -> list[Fit]:
+    """``others`` fitted on top of ``base`` (its knobs held), the :data:`PAIR_POOL` that lower
+    the training error most refitted jointly with it."""
+    progress(f"{base.name} leaves {base.holdout.gap:.2f} % of the gap: fitting each other "
+             f"candidate on top of it")
+    added = [stacked(base, f) for f in fitter.run([Job(base.params, (e,)) for e in others],
+                                                 [f"{e} on top" for e in others])]
+    chosen = sorted(added, key=lambda f: f.train.total)[:PAIR_POOL]
+    progress(f"refitting {', '.join(f.name for f in chosen)} jointly")
+    return fitter.run([Job(nominal, f.groups, f.z, JOINT_BUDGET) for f in chosen])
 
 
 def vanished(f: Fit, tolerance: float = 0.01) -> list[str]:
@@ -346,7 +373,8 @@ def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams 
         ranking = rank(on_cal, cal.holdout, cal.holdout_windows, dt)
         floor = prepared.floor_windows
         if ranking and needs_pairs(ranking[0], floor):
-            pairs, singles = fit_pairs(fitter, nominal, ranking[0].fit, names, progress)
+            pairs, singles = fit_pairs(fitter, nominal, ranking[0].fit,
+                                       {f.name: f for f in on_cal}, names, progress)
             on_cal = [min([f, *(s for s in singles if s.name == f.name)],
                           key=lambda x: x.train.total) for f in on_cal] + pairs
             ranking = rank(on_cal, cal.holdout, cal.holdout_windows, dt)

@@ -1,0 +1,91 @@
+"""Which pairs the diagnosis fits (:func:`diagnose.fit_pairs`), on a fitter whose training
+errors come from a table (no model is simulated)."""
+
+import numpy as np
+
+from jetpipe_ros.diagnosis.calibration import CALIBRATION, group
+from jetpipe_ros.diagnosis.diagnose import PAIR_POOL, fit_pairs
+from jetpipe_ros.diagnosis.fit import Fit
+from jetpipe_ros.diagnosis.score import Score
+
+CAL = CALIBRATION.name
+NAMES = ("sensor_dynamics", "leakage:laminar", "supply_pressure", "valve_delay",
+         "valve_lag:first_order")
+#: Training gap [%] by the candidates fitted. The truth is a strong delay and a weak leak; the
+#: sensor's gain and bias mimic both at once, so it is the best single effect, and on top of it
+#: the delay or the lag fit best: forward selection from it alone never fits delay + leak.
+ERRORS = {
+    ("sensor_dynamics",): 0.58, ("leakage:laminar",): 1.0, ("supply_pressure",): 1.03,
+    ("valve_delay",): 1.14, ("valve_lag:first_order",): 1.15,
+    ("sensor_dynamics", "valve_delay"): 0.16, ("sensor_dynamics", "valve_lag:first_order"): 0.17,
+    ("leakage:laminar", "valve_delay"): 0.05, ("supply_pressure", "valve_delay"): 0.3,
+    ("leakage:laminar", "valve_lag:first_order"): 0.06,
+}
+OTHER = 0.9  #: any other pair
+
+
+def score(gap_pct):
+    return Score(mse={"p1": 1e-4 + (gap_pct / 100) ** 2}, noise={"p1": 1e-4},
+                 count={"p1": 20000})
+
+
+class TableFitter:
+    """Stands in for :class:`jobs.Fitter`: a job's fit carries the candidates of its base model
+    and its own groups, with the training error of :data:`ERRORS` for them; every knob away
+    from where its effect vanishes."""
+
+    def __init__(self):
+        self.below = {}  # id(fit.params) -> the candidates in that model
+        self.fitted = []  # the candidate sets of every job, in order
+
+    def fit(self, groups, below=()):
+        effects = tuple(sorted({*below, *(g for g in groups if g != CAL)}))
+        self.fitted.append(effects)
+        params = object()
+        self.below[id(params)] = effects
+        z = np.concatenate([group(g).start() + (0.0 if g == CAL else 0.5) for g in groups])
+        s = score(ERRORS.get(effects, OTHER))
+        return Fit(groups=tuple(groups), values={g: {} for g in groups}, z=z, params=params,
+                   train=s, holdout=s, holdout_windows=np.zeros(4), evaluations=1,
+                   seconds=0.0)
+
+    def run(self, jobs, labels=None):
+        return [self.fit(j.groups, self.below.get(id(j.base), ())) for j in jobs]
+
+
+def test_pairs_float_from_the_second_member_of_each_pair():
+    fitter = TableFitter()
+    singles = {e: fitter.fit((CAL, e)) for e in NAMES}
+    fitter.fitted.clear()
+    pairs, refitted = fit_pairs(fitter, object(), singles["sensor_dynamics"], singles, NAMES,
+                                lambda message: None)
+    got = [frozenset(p.effects) for p in pairs]
+    assert all(p.calibrated and len(p.effects) == 2 for p in pairs)
+    assert len(set(got)) == len(got), "a pair fitted twice"
+    # Forward selection from the best single: its PAIR_POOL best pairs, refitted jointly.
+    assert got[:PAIR_POOL] == [frozenset({"sensor_dynamics", "valve_delay"}),
+                               frozenset({"sensor_dynamics", "valve_lag:first_order"})]
+    # Then from the delay and from the lag, the stand-in left out: the truth is fitted.
+    assert frozenset({"valve_delay", "leakage:laminar"}) in got
+    assert frozenset({"valve_lag:first_order", "leakage:laminar"}) in got
+    assert all("sensor_dynamics" not in p for p in got[PAIR_POOL:])
+    assert len(pairs) == PAIR_POOL * (1 + PAIR_POOL)
+    assert refitted == []
+
+
+def test_a_pair_whose_refit_switches_a_member_off_is_refitted_as_the_other_alone():
+    class Vanishing(TableFitter):
+        def fit(self, groups, below=()):
+            f = super().fit(groups, below)
+            if len(f.effects) == 2 and "sensor_dynamics" in f.effects:
+                z = f.knobs_by_group()
+                z["sensor_dynamics"] = group("sensor_dynamics").start()
+                f.z = np.concatenate([z[g] for g in f.groups])
+            return f
+
+    fitter = Vanishing()
+    singles = {e: fitter.fit((CAL, e)) for e in NAMES}
+    pairs, refitted = fit_pairs(fitter, object(), singles["sensor_dynamics"], singles, NAMES,
+                                lambda message: None)
+    assert sorted(f.name for f in refitted) == ["valve_delay", "valve_lag:first_order"]
+    assert all(f.calibrated for f in refitted)
