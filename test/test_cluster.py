@@ -47,54 +47,56 @@ def _build(log, truth, root, seed):
 
 
 def test_selfcheck_cases_run_on_the_cluster_and_resume(tmp_path, monkeypatch, scheduler):
-    """Two model truths, none and a valve lag (the cases of seed 2), on the cluster: the lag's
-    case is interrupted, the run resumed; then the scoring of both (withheld truths found,
-    `none` scored as specified, the lag's corner frequency recovered, nothing leaked)."""
-    monkeypatch.setitem(selfcheck.KINDS, "model", ("none", "valve_lag"))
+    """Three model truths, none, a valve lag and a valve delay (the cases of seed 2), on the
+    cluster: the lag's case is interrupted, the run resumed; then the scoring of all three
+    (withheld truths found, `none` scored as specified, the lag's corner frequency and the
+    delay recovered, nothing leaked)."""
+    monkeypatch.setitem(selfcheck.KINDS, "model", ("none", "valve_lag", "valve_delay"))
     log = tmp_path / "recorded.log"
     log.with_suffix(".stop").touch()
     build = functools.partial(_build, log)
     out = tmp_path / "out"
-    run = functools.partial(selfcheck.run_selfcheck, 2, 2, build, out, deviate=False,
+    run = functools.partial(selfcheck.run_selfcheck, 3, 2, build, out, deviate=False,
                             source="model", scheduler=scheduler)
-    with pytest.raises(selfcheck.SelfcheckError, match="1 of 2 cases failed.*case 1.*"
+    with pytest.raises(selfcheck.SelfcheckError, match="1 of 3 cases failed.*case 1.*"
                                                        "interrupted.*run the same command"):
         run(progress=lambda line: None)
-    assert sorted(log.read_text().split()) == ["case00", "case01"]
-    assert [p.parent.name for p in sorted(out.glob("cases/*/result.json"))] == ["case00"]
+    assert sorted(log.read_text().split()) == ["case00", "case01", "case02"]
+    assert [p.parent.name for p in sorted(out.glob("cases/*/result.json"))] == ["case00", "case02"]
     assert not (out / "selfcheck.json").exists()
 
     log.with_suffix(".stop").unlink()
     lines = []
     summary = run(progress=lines.append)
-    assert log.read_text().split()[2:] == ["case01"]  # only the second is computed
-    assert len(lines) == 2 and lines[0].startswith("resuming: 1 of 2 cases already done")
-    assert lines[-1].startswith("[2/2]") and "left" in lines[-1] and "valve_lag" in lines[-1]
-    assert summary["resumed"] == 1 and summary["ran_on"] == f"the Dask scheduler at {scheduler}"
-    assert [r["truth"] for r in summary["results"]] == ["none", "valve_lag"]
-    assert [r["verdict"] for r in summary["results"]] == ["none", "valve_lag"]
+    assert log.read_text().split()[3:] == ["case01"]  # only the second is computed
+    assert len(lines) == 2 and lines[0].startswith("resuming: 2 of 3 cases already done")
+    assert lines[-1].startswith("[3/3]") and "left" in lines[-1] and "valve_lag" in lines[-1]
+    assert summary["resumed"] == 2 and summary["ran_on"] == f"the Dask scheduler at {scheduler}"
+    assert [r["truth"] for r in summary["results"]] == ["none", "valve_lag", "valve_delay"]
+    assert [r["verdict"] for r in summary["results"]] == ["none", "valve_lag", "valve_delay"]
     assert summary["top1_accuracy"] == 1.0 and summary["none_correct"]
-    assert summary["results"][1]["shrinkage"] >= 0.9
-    (rec,) = summary["recovery"]
-    assert rec["param"] == "corner_frequency" and rec["rel_error"] < 0.1
+    assert all(r["shrinkage"] >= 0.9 for r in summary["results"][1:])
+    lag, delay = summary["recovery"]
+    assert lag["param"] == "corner_frequency" and lag["rel_error"] < 0.1
+    assert delay["param"] == "delay" and delay["rel_error"] < 0.1
     assert summary["confusion"]["valve_lag"]["valve_lag"] == 1
     by_truth = summary["accuracy_by_truth"]
-    assert by_truth["none"]["cases"] == 1 and by_truth["valve_lag"]["cases"] == 1
+    assert [by_truth[t]["cases"] for t in ("none", "valve_lag", "valve_delay")] == [1, 1, 1]
     for a in [*by_truth.values(), *summary["accuracy_by_kind"].values()]:
         lo, hi = a["interval"]
         assert 0.0 <= lo <= a["accuracy"] <= hi <= 1.0 and hi - lo > 0.2  # few cases: wide
     q = summary["shrinkage_quantiles"]
     assert q["cases"] >= 1 and q["min"] <= q["median"] <= q["max"]
     md = (out / "selfcheck.md").read_text()
-    assert md.startswith("# jetpipe selfcheck: 2 cases") and "from the model" in md
+    assert md.startswith("# jetpipe selfcheck: 3 cases") and "from the model" in md
     assert "Wilson interval" in md and selfcheck.SHRINKAGE_PNG in md
     assert (out / selfcheck.SHRINKAGE_PNG).read_bytes()[:4] == b"\x89PNG"
-    assert json.loads((out / "selfcheck.json").read_text())["cases"] == 2
+    assert json.loads((out / "selfcheck.json").read_text())["cases"] == 3
     assert (out / "cases" / "case01" / "diagnosis.json").exists()
     assert "valve_lag" in (out / "cases" / "case01" / "truth.yaml").read_text()
     # The diagnosis saw only measurements: the dataset index carries no truth.
     written = [json.loads(line) for line in log.with_suffix(".index").read_text().splitlines()]
-    assert len(written) == 2
+    assert len(written) == 3
     for index in written:
         assert set(index) == {"experiments"}
         assert all(set(e) <= {"file", "piston", "load_force", "role"}
@@ -102,9 +104,9 @@ def test_selfcheck_cases_run_on_the_cluster_and_resume(tmp_path, monkeypatch, sc
 
     # Another configuration in the same OUT is refused before anything runs.
     with pytest.raises(selfcheck.SelfcheckError, match="--seed 2 .*not.*--seed 3.*--restart"):
-        selfcheck.run_selfcheck(2, 3, build, out, deviate=False, source="model",
+        selfcheck.run_selfcheck(3, 3, build, out, deviate=False, source="model",
                                 scheduler=scheduler, progress=lambda line: None)
-    assert len(log.read_text().split()) == 3
+    assert len(log.read_text().split()) == 4
 
 
 def test_fleet_diagnoses_every_dataset_and_reports_the_bad_one(tmp_path, scheduler):
