@@ -2,6 +2,7 @@
 
 import json
 import shutil
+import sys
 import tempfile
 from pathlib import Path
 
@@ -210,15 +211,20 @@ def test_split_fallbacks_are_stated(tmp_path):
     assert prep.records[0].holdout.mean() == pytest.approx(0.3, abs=0.01)
 
 
-def test_bad_datasets_get_clear_errors_and_leave_no_output(tmp_path, capsys):
+def test_bad_datasets_get_clear_errors_and_leave_no_output(tmp_path, capsys, monkeypatch):
     make_dataset(tmp_path / "data", ModelParams())
     csv = tmp_path / "data" / "sweep.csv"
     lines = csv.read_text().splitlines()
     lines[100] = lines[100].replace(lines[100].split(",")[3], "nan", 1)
     csv.write_text("\n".join(lines) + "\n")
     out = tmp_path / "out"
-    assert main(["diagnose", str(tmp_path / "data"), "--out", str(out), "--quiet",
-                 "--jobs", "1"]) == 2  # in this process: see lag_result
+
+    def no_cluster(*args):
+        raise AssertionError("the cluster started before the dataset was read")
+
+    # The default --jobs: the dataset's error comes before any worker is started.
+    monkeypatch.setattr(sys.modules["jetpipe_ros.diagnosis.diagnose"], "Cluster", no_cluster)
+    assert main(["diagnose", str(tmp_path / "data"), "--out", str(out), "--quiet"]) == 2
     assert "sweep.csv: line 101, column 'p1'" in capsys.readouterr().err
     assert not out.exists()
     # Everything held out: no training data.

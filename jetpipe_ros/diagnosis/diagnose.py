@@ -325,24 +325,25 @@ def diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams |
     """Run the diagnosis on a dataset and write its outputs; return diagnosis.json's content.
 
     The candidate fits run on ``workers`` local Dask worker processes (1: in this process), or
-    on the Dask cluster at ``scheduler`` / ``DASK_SCHEDULER_ADDRESS`` (:class:`Cluster`)."""
-    # The linear algebra here is on small matrices: BLAS threads only spin and take the cores
-    # the fitting processes need (measured: 2x slower per fit with them).
-    with threadpool_limits(1), Cluster(workers, scheduler) as cluster:
-        return _diagnose(dataset_dir, out_dir, params, cluster, quiet)
-
-
-def _diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams | None,
-              cluster: Cluster, quiet: bool) -> dict:
+    on the Dask cluster at ``scheduler`` / ``DASK_SCHEDULER_ADDRESS`` (:class:`Cluster`). The
+    dataset is read, and ``out_dir`` checked, before the cluster starts: bad input fails at
+    once."""
     progress = Progress(quiet)
     nominal = params if params is not None else ModelParams()
-    already = nominal.enabled_effects()
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise ParameterError(f"--out {out_dir}: exists and is not a directory")
     progress(f"reading {dataset_dir}")
-    dataset = read_dataset(dataset_dir, limits=Limits.from_params(nominal))
-    prepared = prepare(dataset)
+    prepared = prepare(read_dataset(dataset_dir, limits=Limits.from_params(nominal)))
+    # The linear algebra here is on small matrices: BLAS threads only spin and take the cores
+    # the fitting processes need (measured: 2x slower per fit with them).
+    with threadpool_limits(1), Cluster(workers, scheduler) as cluster:
+        return _diagnose(prepared, out_dir, nominal, cluster, progress)
+
+
+def _diagnose(prepared: Prepared, out_dir: Path, nominal: ModelParams, cluster: Cluster,
+              progress: Progress) -> dict:
+    already = nominal.enabled_effects()
     dt = prepared.dt
     progress(f"{len(prepared.records)} experiments, {prepared.seconds('train'):.1f} s train, "
              f"{prepared.seconds('holdout'):.1f} s holdout; {prepared.split_note}")
