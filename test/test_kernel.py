@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from jetpipe_ros.model import Actuator, ModelParams, kernel
+from jetpipe_ros.model.valve import U_EQ_MAX, U_EQ_MIN, discretise_valve
 
 P = ModelParams()
 EFFECTS = {
@@ -59,6 +60,37 @@ def test_valve_chain_with_every_effect_fits_the_kernel():
     the padded chain's size."""
     lag = {"effects.valve_lag.enabled": True}
     c = Actuator(P.with_values(lag | {"effects.valve_lag.form": "second_order"})).constants
-    assert c.valve_b.shape[0] == kernel.VALVE_ORDER
-    assert Actuator(P.with_values(lag)).constants.valve_b.shape[0] == kernel.VALVE_ORDER - 1
-    assert Actuator(P).constants.valve_b.shape[0] == kernel.VALVE_ORDER - 2
+    assert c.valve_a.shape[0] == kernel.VALVE_ORDER
+    assert Actuator(P.with_values(lag)).constants.valve_a.shape[0] == kernel.VALVE_ORDER - 1
+    assert Actuator(P).constants.valve_a.shape[0] == kernel.VALVE_ORDER - 2
+
+
+@pytest.mark.parametrize("substeps, delay", [(4, 0.0), (4, 0.002), (3, 0.00237), (4, 0.0001),
+                                             (8, 0.0031)])
+def test_valve_pass_by_samples_is_the_sub_step_recursion(substeps, delay):
+    """The valve pass advances the chain a sample at a time (the lifted system); here against
+    the sub-step recursion x <- A x + B u_d, u_f = C x + D u_d of the discretised chain, with
+    its own delay line over sub-steps interpolated linearly (whole and fractional delays, delays
+    shorter than a sample, 3, 4 and 8 sub-steps)."""
+    params = P.with_values({"integration.substeps": substeps, "valve.delay": delay,
+                            "effects.valve_lag.enabled": True,
+                            "effects.valve_lag.form": "second_order"})
+    u = np.clip(command(300)[0], -3.4, 3.4)
+    act = Actuator(params)
+    u_eq = np.empty(u.size * substeps)
+    kernel._valve_pass(act.constants, act.state, act.ring, u, u_eq)
+
+    h = params["integration.sample_time"] / substeps
+    lag = params["effects.valve_lag.corner_frequency"]
+    chain = discretise_valve(params, h, extra_lag_hz=lag,
+                             extra_lag_damping=params["effects.valve_lag.damping_ratio"])
+    per_sub_step = np.concatenate([np.zeros(chain.delay_steps + 1), np.repeat(u, substeps)])
+    x = np.zeros(chain.b.shape[0])
+    expected = []
+    for j in range(u.size * substeps):
+        now, before = per_sub_step[j + 1], per_sub_step[j]  # delay_steps back, and one more
+        u_d = (1.0 - chain.delay_fraction) * now + chain.delay_fraction * before
+        expected.append(chain.c @ x + chain.d * u_d)
+        x = chain.a @ x + chain.b * u_d
+    expected = np.clip(params["valve.gain"] * np.array(expected), U_EQ_MIN, U_EQ_MAX)
+    np.testing.assert_allclose(u_eq, expected, rtol=0, atol=1e-12)

@@ -17,7 +17,7 @@ import numpy as np
 from jetpipe_ros.model import kernel
 from jetpipe_ros.model.flow import P_SUPPLY_NOMINAL
 from jetpipe_ros.model.params import ModelParams
-from jetpipe_ros.model.valve import discretise_valve
+from jetpipe_ros.model.valve import sample_valve
 
 
 #: Parameters whose change, with the regulators on, re-imposes the chamber pressures and the
@@ -34,13 +34,12 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
 
     dt = p["integration.sample_time"]
     substeps = p["integration.substeps"]
-    h = dt / substeps
     lag_hz = effect("valve_lag", "corner_frequency", 0.0)
     second_order = lag_hz and p["effects.valve_lag.form"] == "second_order"
-    valve = discretise_valve(p, h, extra_lag_hz=lag_hz or None,
-                             extra_delay=effect("valve_delay", "delay", 0.0),
-                             extra_lag_damping=p["effects.valve_lag.damping_ratio"]
-                             if second_order else None)
+    valve = sample_valve(p, dt, substeps, extra_lag_hz=lag_hz or None,
+                         extra_delay=effect("valve_delay", "delay", 0.0),
+                         extra_lag_damping=p["effects.valve_lag.damping_ratio"]
+                         if second_order else None)
     planes = np.array([[p[f"friction.{phase}.{q}"] for q in
                         ("breakaway", "stribeck_velocity", "viscous", "coulomb")]
                        for phase in ("entry", "exit")], dtype=float)
@@ -57,8 +56,8 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
     laminar = leakage and not orifice
     return kernel.Constants(
         dt=dt, substeps=substeps, u_limit=p["valve.command_limit"],
-        valve_a=valve.a, valve_b=valve.b, valve_c=valve.c, valve_d=valve.d,
-        delay_steps=valve.delay_steps, delay_fraction=valve.delay_fraction,
+        valve_a=valve.a, valve_g=valve.g, valve_c=valve.c, valve_h=valve.h,
+        delay_samples=valve.delay_samples,
         hysteresis=hysteresis,
         flow_coef=np.array(p["flow.coefficients"], dtype=float),
         gain_charge=p["flow.gain_charge"], gain_discharge=p["flow.gain_discharge"],
@@ -135,7 +134,7 @@ class Actuator:
     def reset(self) -> None:
         """Return to the initial state: at rest, valve at rest, pressures as configured."""
         c = self.constants
-        x = np.zeros(kernel.VALVE + c.valve_b.shape[0])
+        x = np.zeros(kernel.VALVE + c.valve_a.shape[0])
         p = self.params
         x[kernel.Y] = min(max(p["mechanics.initial_position"], -c.y_max), c.y_max)
         x[kernel.P1] = x[kernel.PS1] = p["chamber.initial_pressure_1"]
@@ -143,7 +142,7 @@ class Actuator:
         x[kernel.T1] = x[kernel.T2] = p["chamber.temperature"]
         x[kernel.STUCK] = 1.0
         self.state = x
-        self.ring = np.zeros(c.delay_steps + 2)  # one slot more: a fractional delay reads it
+        self.ring = np.zeros(c.delay_samples + 2)  # the current command and the delay's two
 
     def reconfigure(self, changes: Mapping[str, Any]) -> None:
         """Apply parameter ``changes`` in place, keeping the state, as a test rig's switch does.
@@ -164,14 +163,14 @@ class Actuator:
         params = self.params.with_values(changes)
         constants = build_constants(params)
         state, ring = self.state, self.ring
-        size = kernel.VALVE + constants.valve_b.shape[0]
-        if state.shape[0] != size or ring.shape[0] != constants.delay_steps + 2:
+        size = kernel.VALVE + constants.valve_a.shape[0]
+        if state.shape[0] != size or ring.shape[0] != constants.delay_samples + 2:
             kept = state[:kernel.VALVE].copy()
             state = np.zeros(size)
             state[:kernel.VALVE] = kept
             state[kernel.PLAY:kernel.VALVE] = 0.0
             state[kernel.HEAD] = 0.0
-            ring = np.zeros(constants.delay_steps + 2)
+            ring = np.zeros(constants.delay_samples + 2)
         if params["chamber.regulated"] and any(key in changes for key in REGULATOR_KEYS):
             state = state.copy()
             state[kernel.P1] = params["chamber.initial_pressure_1"]

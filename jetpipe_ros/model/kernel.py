@@ -2,9 +2,12 @@
 
 Every simulator (the ROS node, the batch simulator, the diagnosis) advances the model through
 :func:`advance`; there is no second copy of the physics. The state is a flat float array (layout
-below) plus a ring buffer holding the valve's delay line. Per sub-step of length h:
+below) plus a ring buffer holding the valve's delay line (one command per sample). Per sub-step
+of length h:
 
-1. the command enters the delay line; the valve chain (exactly discretised) produces u_f;
+1. the delayed command drives the valve chain (exactly discretised), which produces u_f; the
+   chain is linear and the command held over a sample, so it advances a whole sample at a time
+   (:class:`~jetpipe_ros.model.valve.SampledValve`), its sub-step outputs included;
 2. the hysteresis play operator (effect) and the jet-pipe saturation give u_eq;
 3. the flow map, leakage (effect) and Eq. 11-12 advance the pressures explicitly;
 4. the piston velocity advances with the viscous friction implicit (F_v/M reaches ~4000 1/s),
@@ -14,8 +17,9 @@ below) plus a ring buffer holding the valve's delay line. Per sub-step of length
 5. the position advances (semi-implicit Euler) and stops inelastically at the end stops.
 
 Steps 1-2 depend on the command only, so :func:`advance` runs them ahead over a block of samples
-(:func:`_valve_pass`) and steps 3-5 after (:func:`_physics_pass`); the arithmetic is that of one
-sub-step after the other, so one sample at a time (the node) and a whole run give the same bits.
+(:func:`_valve_pass`) and steps 3-5 after (:func:`_physics_pass`); the arithmetic of a sample
+does not depend on the block around it, so one sample at a time (the node) and a whole run give
+the same bits.
 
 Subsystems can be driven instead of simulated, to judge them apart (the diagnosis) or to emulate
 test rigs: a ``drive`` array prescribes, sample by sample, the piston position and velocity
@@ -61,12 +65,11 @@ class Constants(NamedTuple):
     dt: float  #: sample time [s]
     substeps: int  #: sub-steps per sample
     u_limit: float  #: command saturation [V]
-    valve_a: np.ndarray  #: discretised valve chain
-    valve_b: np.ndarray
+    valve_a: np.ndarray  #: valve chain over one sample (:class:`valve.SampledValve`)
+    valve_g: np.ndarray
     valve_c: np.ndarray
-    valve_d: float
-    delay_steps: int  #: valve transport delay [whole sub-steps]
-    delay_fraction: float  #: and the fraction of a sub-step beyond them (linear interpolation)
+    valve_h: np.ndarray
+    delay_samples: int  #: whole samples of the valve's transport delay
     hysteresis: np.ndarray  #: play thresholds [V], one per element; empty = off
     flow_coef: np.ndarray  #: Eq. 8 coefficients
     gain_charge: float  #: factor on the flow filling a chamber
@@ -141,46 +144,40 @@ def _valve_pass(c: Constants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
     """Run the valve chain over the sub-steps of the samples ``u`` [V, clipped].
 
     ``u_eq[k * substeps + s]`` [V] receives the equivalent voltage of sub-step s of sample k.
-    The chain's state, the hysteresis operators' outputs and the delay line's write slot in
-    ``x``, and the delay line ``ring``, are updated in place.
+    The chain advances a sample at a time (:class:`valve.SampledValve`). The chain's state, the
+    hysteresis operators' outputs and the delay line's write slot in ``x``, and the delay line
+    ``ring`` (one command per sample), are updated in place.
     """
-    nv = c.valve_b.shape[0]
+    nv = c.valve_a.shape[0]
+    ns = c.substeps
     # The chain's matrices padded with zeros to VALVE_ORDER: loops of constant length unroll.
     va = np.zeros((VALVE_ORDER, VALVE_ORDER))
-    vb = np.zeros(VALVE_ORDER)
-    vc = np.zeros(VALVE_ORDER)
+    vg = np.zeros((VALVE_ORDER, 2))
+    vc = np.zeros((ns, VALVE_ORDER))
     state = np.zeros(VALVE_ORDER)
     va[:nv, :nv] = c.valve_a
-    vb[:nv] = c.valve_b
-    vc[:nv] = c.valve_c
+    vg[:nv] = c.valve_g
+    vc[:, :nv] = c.valve_c
+    vh = c.valve_h
     state[:nv] = x[VALVE:VALVE + nv]
     new = np.zeros(VALVE_ORDER)
     n_play = c.hysteresis.shape[0]
     play = x[PLAY:PLAY + n_play]
     head = int(x[HEAD])
     size = ring.shape[0]
-    lag = size - c.delay_steps  # the slot delay_steps behind head, ahead of it modulo size
-    frac = c.delay_fraction
+    lag = size - c.delay_samples  # the slot delay_samples behind head, ahead of it modulo size
     i_out = 0
     for k in range(u.shape[0]):
-        for _ in range(c.substeps):
-            ring[head] = u[k]
-            tail = head + lag
-            tail = tail - size if tail >= size else tail
-            u_d = ring[tail]
-            if frac > 0.0:  # a delay between two sub-steps: interpolated
-                u_d = (1.0 - frac) * u_d + frac * ring[tail - 1 if tail > 0 else size - 1]
-            head = head + 1 if head + 1 < size else 0
-            u_f = c.valve_d * u_d
-            for i in range(VALVE_ORDER):
-                u_f += vc[i] * state[i]
-            for i in range(VALVE_ORDER):
-                acc = vb[i] * u_d
-                for j in range(VALVE_ORDER):
-                    acc += va[i, j] * state[j]
-                # Decaying derivative states would otherwise end in subnormals (~100x slower).
-                new[i] = acc if abs(acc) > 1e-200 else 0.0
-            state, new = new, state
+        ring[head] = u[k]
+        tail = head + lag
+        tail = tail - size if tail >= size else tail
+        u0 = ring[tail]  # u[k - m] and u[k - m - 1]
+        u1 = ring[tail - 1 if tail > 0 else size - 1]
+        head = head + 1 if head + 1 < size else 0
+        for s in range(ns):
+            u_f = vh[s, 0] * u0 + vh[s, 1] * u1
+            for j in range(VALVE_ORDER):
+                u_f += vc[s, j] * state[j]
             if n_play:
                 # Prandtl-Ishlinskii: the mean of play operators (one element = a single play).
                 acc = 0.0
@@ -191,6 +188,13 @@ def _valve_pass(c: Constants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
                 u_f = acc / n_play
             u_eq[i_out] = min(max(c.valve_gain * u_f, U_EQ_MIN), U_EQ_MAX)
             i_out += 1
+        for i in range(VALVE_ORDER):
+            acc = vg[i, 0] * u0 + vg[i, 1] * u1
+            for j in range(VALVE_ORDER):
+                acc += va[i, j] * state[j]
+            # Decaying derivative states would otherwise end in subnormals (~100x slower).
+            new[i] = acc if abs(acc) > 1e-200 else 0.0
+        state, new = new, state
     x[VALVE:VALVE + nv] = state[:nv]
     x[HEAD] = head
 

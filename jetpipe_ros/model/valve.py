@@ -132,3 +132,54 @@ def _discretise(values: tuple[float, ...], h: float, extra_lag_hz: float | None,
     fraction = max(steps - whole, 0.0) if steps - whole > 1e-9 else 0.0
     return DiscreteValve(np.ascontiguousarray(ad), np.ascontiguousarray(bd[:, 0]),
                          np.ascontiguousarray(cd[0]), float(dd[0, 0]), int(whole), fraction)
+
+
+@dataclass(frozen=True)
+class SampledValve:
+    """The discretised chain advanced a whole sample at a time (the lifted system).
+
+    The command is held over each sample, so over the sub-steps of sample k the delayed command
+    mixes only two samples, u[k - m] and u[k - m - 1] (m = ``delay_samples``), with weights fixed
+    by the delay. From the chain's state x at the start of the sample, sub-step s's output is
+    ``c[s] @ x + h[s] @ (u[k - m], u[k - m - 1])`` and the next sample's state
+    ``a @ x + g @ (u[k - m], u[k - m - 1])``: the arithmetic of the sub-step recursion, with
+    under half its multiplications.
+    """
+
+    a: np.ndarray  #: state over one sample, A^substeps (n, n)
+    g: np.ndarray  #: state from the two delayed commands (n, 2)
+    c: np.ndarray  #: sub-step outputs from the state (substeps, n)
+    h: np.ndarray  #: sub-step outputs from the two delayed commands (substeps, 2)
+    delay_samples: int  #: m: whole samples of delay before the two commands
+
+
+def sample_valve(p: Mapping[str, Any], dt: float, substeps: int,
+                 extra_lag_hz: float | None = None, extra_delay: float = 0.0,
+                 extra_lag_damping: float | None = None) -> SampledValve:
+    """:func:`discretise_valve` at the sub-step dt / ``substeps`` [s], lifted to the sample
+    time ``dt`` [s] (:class:`SampledValve`); cached like it (treat its arrays as read-only)."""
+    values = tuple(p[name] for name in _CHAIN_PARAMS)
+    return _sample(values, dt, substeps, extra_lag_hz, extra_delay, extra_lag_damping)
+
+
+@lru_cache(maxsize=64)
+def _sample(values: tuple[float, ...], dt: float, substeps: int, extra_lag_hz: float | None,
+            extra_delay: float, extra_lag_damping: float | None) -> SampledValve:
+    chain = _discretise(values, dt / substeps, extra_lag_hz, extra_delay, extra_lag_damping)
+    # Sub-step s of sample k reads the command delay_steps + fraction sub-steps back, linearly
+    # interpolated between the sub-steps around it: whole samples m, then sub-steps r.
+    m, r = divmod(chain.delay_steps, substeps)
+    f = chain.delay_fraction
+    s = np.arange(substeps)
+    recent = (1.0 - f) * (s >= r) + f * (s >= r + 1)  # weight of u[k - m]
+    weights = np.stack([recent, 1.0 - recent], axis=1)  # (substeps, 2)
+    n = chain.b.shape[0]
+    from_state, from_input = np.eye(n), np.zeros((n, 2))  # x(s) = from_state x + from_input u
+    c_rows, h_rows = [], []
+    for w in weights:
+        c_rows.append(chain.c @ from_state)
+        h_rows.append(chain.c @ from_input + chain.d * w)
+        from_state = chain.a @ from_state
+        from_input = chain.a @ from_input + np.outer(chain.b, w)
+    return SampledValve(np.ascontiguousarray(from_state), np.ascontiguousarray(from_input),
+                        np.array(c_rows), np.array(h_rows), int(m))
