@@ -142,8 +142,8 @@ class SampledValve:
     mixes only two samples, u[k - m] and u[k - m - 1] (m = ``delay_samples``), with weights fixed
     by the delay. From the chain's state x at the start of the sample, sub-step s's output is
     ``c[s] @ x + h[s] @ (u[k - m], u[k - m - 1])`` and the next sample's state
-    ``a @ x + g @ (u[k - m], u[k - m - 1])``: the arithmetic of the sub-step recursion, with
-    under half its multiplications.
+    ``a @ x + g @ (u[k - m], u[k - m - 1])``: the sub-step recursion's result with under half its
+    multiplications (80 a sample instead of 196 at order 6 and 4 sub-steps).
     """
 
     a: np.ndarray  #: state over one sample, A^substeps (n, n)
