@@ -5,14 +5,18 @@ Simulates the default campaign (config/campaign.yaml) on a bench whose parameter
 map 8 % weaker, friction forces 20 % higher, chamber 1 dead volume 20 % larger) with a 25 Hz
 valve lag and sensor noise as the "real" data, then times `diagnose` with its fits on 2 Dask
 worker processes (a LocalCluster per diagnosis, its start-up included; median of repeats) and
-once with 1 (in this process) for the parallel speed-up. Prints a markdown table; compare
-rows, not machines.
+once with 1 (in this process) for the parallel speed-up, then once more in this process under
+cProfile: where a diagnosis spends its time, the functions with the most time of their own
+(the compiled kernel's time counts as its caller's, ``Actuator.run``). Prints markdown tables;
+compare rows, not machines.
 Usage: .venv/bin/python bench/bench_diagnose.py [--repeats 3]
 """
 
 from __future__ import annotations
 
 import argparse
+import cProfile
+import pstats
 import statistics
 import tempfile
 import time
@@ -28,6 +32,17 @@ def timed(data: Path, out: Path, workers: int) -> tuple[float, dict]:
     t0 = time.perf_counter()
     result = diagnose(data, out, workers=workers, quiet=True)
     return time.perf_counter() - t0, result
+
+
+def profiled(data: Path, out: Path) -> list[tuple[str, float]]:
+    """An in-process diagnosis' functions by time of their own [s], most first."""
+    profile = cProfile.Profile()
+    profile.runcall(diagnose, data, out, workers=1, quiet=True)
+    stats = pstats.Stats(profile).stats  # {(file, line, name): (cc, nc, tottime, cumtime, ...)}
+    own = sorted(((f"{Path(f).parent.name}/{Path(f).name}:{name}" if f != "~" else name, tt)
+                  for (f, _, name), (_, _, tt, _, _) in stats.items()),
+                 key=lambda item: -item[1])
+    return own
 
 
 def main() -> None:
@@ -51,6 +66,7 @@ def main() -> None:
             wall, result = timed(data, Path(tmp) / f"out{i}", 2)
             walls.append(wall)
         single, _ = timed(data, Path(tmp) / "single", 1)
+        own = profiled(data, Path(tmp) / "profiled")
     med = statistics.median(walls)
     v = result["verdict"]
     print("| diagnosis, default campaign dataset, recalibration + 9 candidates | value | target |")
@@ -67,6 +83,13 @@ def main() -> None:
           f"{knobs['flow_gain_charge']:.3f}/{knobs['flow_gain_discharge']:.3f}, friction "
           f"{knobs['friction_entry']:.2f}/{knobs['friction_exit']:.2f}, dead volume 1 "
           f"{knobs['dead_volume_1']:.2f} | |")
+    total = sum(t for _, t in own)
+    print("\n| where the in-process diagnosis spends its time (own time, cProfile) | s | share |")
+    print("|---|---|---|")
+    for name, t in own[:12]:
+        print(f"| `{name}` | {t:.1f} | {100 * t / total:.0f} % |")
+    print(f"| everything else | {total - sum(t for _, t in own[:12]):.1f} | "
+          f"{100 * (1 - sum(t for _, t in own[:12]) / total):.0f} % |")
 
 
 if __name__ == "__main__":
