@@ -9,8 +9,11 @@ shared machine leaves out the time other processes hold the core and on an idle 
 wall time. Medians of repeats in one run, single core; compare rows, not machines.
 ``--baseline REV`` also runs the same measurements on the package as it was at git
 revision REV (extracted into a temporary directory, in a subprocess, same dataset), so before and
-after come from one run on one machine. Prints markdown tables.
+after come from one run on one machine; ``--rounds N`` alternates the two N times and reports
+the medians over the rounds, so a machine whose speed drifts during the run (a shared host)
+does not favour whichever was measured second. Prints markdown tables.
 Usage: .venv/bin/python bench/bench_sim.py [--seconds 60] [--repeats 5] [--baseline REV]
+[--rounds 3]
 """
 
 from __future__ import annotations
@@ -150,6 +153,16 @@ def baseline(rev: str, args: argparse.Namespace, dataset: Path) -> dict:
         return figures
 
 
+def median_figures(runs: list[dict]) -> dict:
+    """The median, key by key, of the figures of several rounds (numbers and nested dicts)."""
+    first = runs[0]
+    if isinstance(first, dict):
+        return {key: median_figures([r[key] for r in runs]) for key in first}
+    if isinstance(first, (int, float)) and not isinstance(first, bool):
+        return statistics.median(runs)
+    return first
+
+
 def table(now: dict, before: dict | None, rev: str | None) -> str:
     """Markdown tables of the figures, with the baseline's and the speed-up when given."""
     runs = [before, now] if before else [now]
@@ -189,6 +202,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--baseline", metavar="REV",
                         help="git revision to measure too, e.g. the merge base of this branch")
+    parser.add_argument("--rounds", type=int, default=1,
+                        help="alternate baseline and current this many times (medians)")
     parser.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--dataset", type=Path, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -198,9 +213,15 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         dataset = Path(tmp) / "data"
         make_dataset(dataset)
-        before = baseline(args.baseline, args, dataset) if args.baseline else None
-        now = measure(args.seconds, args.repeats, dataset)
-    print(table(now, before, args.baseline))
+        befores, nows = [], []
+        for _ in range(max(args.rounds, 1)):
+            if args.baseline:
+                befores.append(baseline(args.baseline, args, dataset))
+            nows.append(measure(args.seconds, args.repeats, dataset))
+        before = median_figures(befores) if befores else None
+        now = median_figures(nows)
+    note = f"\n\nMedians of {len(nows)} alternating rounds." if len(nows) > 1 else ""
+    print(table(now, before, args.baseline) + note)
 
 
 if __name__ == "__main__":

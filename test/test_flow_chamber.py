@@ -92,8 +92,9 @@ def test_valve_gain_moves_the_locked_equilibrium_to_the_null_of_the_scaled_volta
 
 
 def test_flow_polynomial_is_the_papers_sum_of_terms():
-    """Eq. 8 as the model evaluates it (coefficients times flow_basis) equals the 21 terms
-    written out here in the paper's order."""
+    """Eq. 8 as the model evaluates it (Horner's scheme over flow.FLOW_TERMS) and the
+    identification's regressors (flow_matrix) equal the 21 terms written out here in the
+    paper's order."""
     rng = np.random.default_rng(2)
     for u, p in zip(rng.uniform(-3.4, 3.4, 200), rng.uniform(1.0, 10.0, 200)):
         terms = [1, u, p, u**2, u * p, p**2, u**3, u**2 * p, u * p**2, p**3, u**4, u**3 * p,
@@ -101,3 +102,4 @@ def test_flow_polynomial_is_the_papers_sum_of_terms():
                  u * p**4, p**5]
         assert flow_polynomial(COEF, u, p) == pytest.approx(1e-3 * COEF @ terms, rel=1e-12,
                                                             abs=1e-15)
+        np.testing.assert_allclose(flow_matrix(u, p)[0], terms, rtol=1e-14)

@@ -24,50 +24,41 @@ P_SUPPLY_NOMINAL = 1.0e6
 KG_PER_G = 1e-3
 
 
-@njit(cache=True, error_model="numpy")
-def flow_basis(u: float | np.ndarray, p_bar: float | np.ndarray) -> tuple[float | np.ndarray, ...]:
-    """Eq. 8's 21 monomials u^i p^j (i + j <= 5) in the paper's order, for voltage ``u`` [V]
-    and pressure ``p_bar`` [bar]: 1, u, p, u^2, u p, p^2, u^3, ..., u p^4, p^5.
+#: Eq. 8's 21 terms u^i p^j (i + j <= 5) as (i, j), in the paper's order: 1, u, p, u^2, u p,
+#: p^2, u^3, ..., u p^4, p^5. The one definition of the terms: the model evaluates them from it
+#: (:func:`flow_polynomial`), the identification fits their coefficients (:func:`flow_matrix`).
+FLOW_TERMS = tuple((degree - j, j) for degree in range(6) for j in range(degree + 1))
 
-    Floats (the kernel: a tuple of floats) or equal-shape arrays (the least-squares fit of
-    :mod:`jetpipe_ros.identify.flow_map`: a tuple of arrays): the one definition of Eq. 8's
-    terms that both the model and the identification use.
-    """
-    u2 = u * u
-    u3 = u2 * u
-    u4 = u3 * u
-    p2 = p_bar * p_bar
-    p3 = p2 * p_bar
-    p4 = p3 * p_bar
-    return (u * 0.0 + 1.0, u, p_bar, u2, u * p_bar, p2, u3, u2 * p_bar, u * p2, p3, u4,
-            u3 * p_bar, u2 * p2, u * p3, p4, u4 * u, u4 * p_bar, u3 * p2, u2 * p3, u * p4,
-            p4 * p_bar)
+#: Position in the paper's order of the coefficient of u^i p^j, at [i, j] (-1: no such term).
+_TERM_INDEX = np.full((6, 6), -1, dtype=np.int64)
+for _k, (_i, _j) in enumerate(FLOW_TERMS):
+    _TERM_INDEX[_i, _j] = _k
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def flow_polynomial(coef: np.ndarray, u: float, p_bar: float) -> float:
     """Eq. 8: mass flow [kg/s] for voltage ``u`` [V] and pressure ``p_bar`` [bar].
 
-    ``coef`` holds the 21 coefficients in the paper's order (result in g/s).
+    ``coef`` holds the 21 coefficients in the paper's order (result in g/s). Evaluated by
+    Horner's scheme, in p within each power of u (loops of constant length: they unroll, and
+    the indices fold into constants).
     """
-    t = flow_basis(u, p_bar)
-    # The dot product with constant indices: numba indexes a tuple at full speed only so (a
-    # loop over the terms costs 8x in the kernel).
-    g = (coef[0] * t[0] + coef[1] * t[1] + coef[2] * t[2] + coef[3] * t[3] + coef[4] * t[4]
-         + coef[5] * t[5] + coef[6] * t[6] + coef[7] * t[7] + coef[8] * t[8] + coef[9] * t[9]
-         + coef[10] * t[10] + coef[11] * t[11] + coef[12] * t[12] + coef[13] * t[13]
-         + coef[14] * t[14] + coef[15] * t[15] + coef[16] * t[16] + coef[17] * t[17]
-         + coef[18] * t[18] + coef[19] * t[19] + coef[20] * t[20])
+    g = 0.0
+    for j in range(5, -1, -1):
+        a = 0.0
+        for i in range(5 - j, -1, -1):
+            a = a * u + coef[_TERM_INDEX[i, j]]
+        g = g * p_bar + a
     return g * KG_PER_G
 
 
 def flow_matrix(u: np.ndarray | float, p_bar: np.ndarray | float) -> np.ndarray:
-    """(n, 21) matrix of Eq. 8's monomials (:func:`flow_basis`) for voltages ``u`` [V] and
+    """(n, 21) matrix of Eq. 8's terms (:data:`FLOW_TERMS`) for voltages ``u`` [V] and
     pressures ``p_bar`` [bar] (broadcast against each other, flattened): the regressors of a
     least-squares fit of the coefficients [g/s]."""
     u, p = np.broadcast_arrays(np.asarray(u, dtype=float), np.asarray(p_bar, dtype=float))
-    return np.stack(flow_basis(np.ascontiguousarray(u.ravel()),
-                               np.ascontiguousarray(p.ravel())), axis=-1)
+    u, p = u.ravel(), p.ravel()
+    return np.stack([u**i * p**j for i, j in FLOW_TERMS], axis=-1)
 
 
 def mass_flow(coef: np.ndarray, u: np.ndarray | float, p_bar: np.ndarray | float
