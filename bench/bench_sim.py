@@ -7,10 +7,10 @@ sensor noise), with where its time goes (the kernel, the parameters compiled for
 the prediction in Python). Times are the thread's CPU time (``time.thread_time``), which on a
 shared machine leaves out the time other processes hold the core and on an idle core equals
 wall time. Medians of repeats in one run, single core; compare rows, not machines.
-``--baseline REV`` also runs the same measurements on the package as it was at git
-revision REV (extracted into a temporary directory, in a subprocess, same dataset), so before and
-after come from one run on one machine; ``--rounds N`` alternates the two N times and reports
-the medians over the rounds, so a machine whose speed drifts during the run (a shared host)
+``--baseline REV`` also runs the same measurements on the package as it was at git revision REV
+(extracted into a temporary directory, same dataset), each in a fresh single-threaded subprocess,
+so before and after come from one run on one machine; ``--rounds N`` alternates the two N times and
+reports the medians over the rounds, so a machine whose speed drifts during the run (a shared host)
 does not favour whichever was measured second. Prints markdown tables.
 Usage: .venv/bin/python bench/bench_sim.py [--seconds 60] [--repeats 5] [--baseline REV]
 [--rounds 3]
@@ -136,6 +136,21 @@ def evaluation(dataset: Path, repeats: int) -> dict:
             "evaluation": {key: statistics.median(r[key] for r in rows) for key in rows[0]}}
 
 
+def in_subprocess(package_root: Path, args: argparse.Namespace, dataset: Path) -> dict:
+    """:func:`measure` on the package under ``package_root``, in a fresh single-threaded
+    subprocess: before and after alike, so neither inherits the other's process state (the
+    dataset's objects for the garbage collector, BLAS threads still spinning)."""
+    env = {**os.environ, "PYTHONPATH": str(package_root), "OPENBLAS_NUM_THREADS": "1",
+           "OMP_NUM_THREADS": "1"}
+    out = subprocess.run([sys.executable, __file__, "--json", "--seconds", str(args.seconds),
+                          "--repeats", str(args.repeats), "--dataset", str(dataset)],
+                         check=True, capture_output=True, text=True, env=env).stdout
+    figures = json.loads(out)
+    if not figures["package"].startswith(str(package_root)):
+        raise RuntimeError(f"imported {figures['package']}, not the one in {package_root}")
+    return figures
+
+
 def baseline(rev: str, args: argparse.Namespace, dataset: Path) -> dict:
     """:func:`measure` on the package at git revision ``rev``, in a subprocess."""
     with tempfile.TemporaryDirectory() as tmp:
@@ -143,14 +158,7 @@ def baseline(rev: str, args: argparse.Namespace, dataset: Path) -> dict:
                                  check=True, capture_output=True).stdout
         with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
             tar.extractall(tmp, filter="data")
-        env = {**os.environ, "PYTHONPATH": tmp}
-        out = subprocess.run([sys.executable, __file__, "--json", "--seconds", str(args.seconds),
-                              "--repeats", str(args.repeats), "--dataset", str(dataset)],
-                             check=True, capture_output=True, text=True, env=env).stdout
-        figures = json.loads(out)
-        if not figures["package"].startswith(tmp):
-            raise RuntimeError(f"baseline imported {figures['package']}, not the one in {tmp}")
-        return figures
+        return in_subprocess(Path(tmp), args, dataset)
 
 
 def median_figures(runs: list[dict]) -> dict:
@@ -217,7 +225,7 @@ def main() -> None:
         for _ in range(max(args.rounds, 1)):
             if args.baseline:
                 befores.append(baseline(args.baseline, args, dataset))
-            nows.append(measure(args.seconds, args.repeats, dataset))
+            nows.append(in_subprocess(REPO, args, dataset))
         before = median_figures(befores) if befores else None
         now = median_figures(nows)
     note = f"\n\nMedians of {len(nows)} alternating rounds." if len(nows) > 1 else ""

@@ -24,8 +24,11 @@ def pressure_rates(q1: float, q2: float, p1: float, p2: float, v: float, vol1: f
     ``q1``, ``q2`` are the net mass flows into each chamber [kg/s], ``v`` the piston velocity
     [m/s] (positive enlarges chamber 1), ``rt`` the product r T [J/kg].
     """
-    dp1 = n * (rt * q1 - area * p1 * v) / vol1
-    dp2 = n * (rt * q2 + area * p2 * v) / vol2
+    # By the reciprocal: it depends on the volumes only, so the kernel's sub-steps compute it
+    # beside the flow map rather than after it (their chains of dependent operations set the
+    # pace).
+    dp1 = (rt * q1 - area * p1 * v) * (n / vol1)
+    dp2 = (rt * q2 + area * p2 * v) * (n / vol2)
     return dp1, dp2
 
 

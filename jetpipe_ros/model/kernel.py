@@ -369,7 +369,8 @@ def _mechanics_substep(planes: np.ndarray, f_a: float, p1: float, p2: float, h: 
             d = math.copysign(1.0, v) if v != 0.0 else math.copysign(1.0, f_a)
             f_s, v_s, f_v, f_c = friction_parameters(planes, d, p1, p2)
         f_st = stribeck_force(v, f_s, v_s, f_c)
-        v_new = (v + h / mass * (f_a - f_st)) / (1.0 + h * f_v / mass)
+        # Times the reciprocal, which does not wait on the Stribeck term (see pressure_rates).
+        v_new = (v + h / mass * (f_a - f_st)) * (1.0 / (1.0 + h * f_v / mass))
         if v_new * d <= 0.0:
             # Velocity reached zero within the step: stick (Eq. 15 decides release next step).
             v_new = 0.0
