@@ -89,6 +89,12 @@ class KnobGroup:
                 out.append(k.name)
         return out
 
+    def vanishes(self, values: dict[str, float], tolerance: float = 0.01) -> bool:
+        """True when every knob but those spanning a form's extent lies within ``tolerance``
+        (of the unit-scaled range) of the value where the group changes nothing."""
+        return all(abs(k.to_unit(values[k.name]) - k.to_unit(k.off)) <= tolerance
+                   for k in self.knobs if not k.extent)
+
     def apply(self, params: ModelParams, values: dict[str, float]) -> ModelParams:
         """``params`` changed by this group at ``values``."""
         raise NotImplementedError

@@ -36,11 +36,12 @@ from jetpipe_ros.diagnosis.jobs import Fitter, Job
 from jetpipe_ros.diagnosis.localize import by_regime, frequency_response, position_error_pct
 from jetpipe_ros.diagnosis import residuals
 from jetpipe_ros.diagnosis.noise_floor import calibrate, twin
+from jetpipe_ros.diagnosis.separation import separating_experiment, stand_ins, words
 from jetpipe_ros.diagnosis.prediction import HORIZON, predict
 from jetpipe_ros.diagnosis.score import METRIC, Score, predict_all, score, window_errors
 from jetpipe_ros.diagnosis.verdict import (NOISE_GAP, Ranked, Settled, decide, needs_pairs,
                                            paired_t, rank, settle)
-from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError, simulate
+from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError
 from jetpipe_ros.model.limits import Limits
 
 SCHEMA = "jetpipe.diagnosis/2"
@@ -284,42 +285,6 @@ def subsystem_gaps(prepared: Prepared, nominal: ModelParams) -> dict:
     }
 
 
-def separating_experiment(a: ModelParams, b: ModelParams, prepared: Prepared) -> dict | None:
-    """The experiment where two fitted models differ most, relative to sensor noise.
-
-    Candidates: the open-loop experiments of the default campaign (config/campaign.yaml),
-    simulated whole with both models, and the experiments of this dataset, predicted as the
-    diagnosis predicts them. The difference is the RMS over signals of (a - b) / noise.
-    """
-    from jetpipe_ros.campaign import default_campaign
-
-    noise = {s: max(prepared.noise[s], 1e-12) for s in SIGNALS}
-    menu = []
-    for rec in prepared.records:
-        pa = predict(a, rec, prepared.dt)
-        pb = predict(b, rec, prepared.dt)
-        d = np.mean([np.mean(((pa.signal(s) - pb.signal(s)) / noise[s])[pa.free] ** 2)
-                     for s in rec.signals()])
-        menu.append({"experiment": rec.name, "piston": rec.entry.piston, "in_dataset": True,
-                     "difference_over_noise": float(np.sqrt(d))})
-    campaign = default_campaign()
-    have = {r.name for r in prepared.records}
-    for exp in campaign.experiments:
-        if exp.closed_loop or exp.name in have:
-            continue
-        u = exp.command(prepared.dt).voltage
-        changes = {"mechanics.locked": exp.locked, "sensors.noise": False,
-                   "integration.sample_time": prepared.dt}
-        ta = simulate(a.with_values(changes), u, exp.load_force)
-        tb = simulate(b.with_values(changes), u, exp.load_force)
-        signals = ("p1", "p2") if exp.locked else SIGNALS
-        d = np.mean([np.mean(((getattr(ta, f"{s}_meas") - getattr(tb, f"{s}_meas")) /
-                              noise[s]) ** 2) for s in signals])
-        menu.append({"experiment": exp.name, "piston": "locked" if exp.locked else "free",
-                     "in_dataset": False, "difference_over_noise": float(np.sqrt(d))})
-    return max(menu, key=lambda m: m["difference_over_noise"]) if menu else None
-
-
 def diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams | None = None,
              workers: int = 2, quiet: bool = False, scheduler: str | None = None) -> dict:
     """Run the diagnosis on a dataset and write its outputs; return diagnosis.json's content.
@@ -395,12 +360,15 @@ def _diagnose(prepared: Prepared, out_dir: Path, nominal: ModelParams, cluster: 
                 (b,) = fitter.run([Job(nominal, w.effects, w.z[len(cal.z):], JOINT_BUDGET)])
             (given,) = rank([w], b.holdout, b.holdout_windows, dt)
             (effect_alone,) = rank([b], nom_hold, nom_windows, dt)
-    settled = settle(cal_row, on_cal_verdict, alone_verdict, given, effect_alone)
-
-    progress("scoring the augmented model; standard errors of its parameters")
-    final = settled.final
+        settled = settle(cal_row, on_cal_verdict, alone_verdict, given, effect_alone)
+        progress("scoring the augmented model; standard errors of its parameters")
+        final = settled.final
+        errors = uncertainty(prepared, nominal, final) if final is not None else {}
+        swaps = []
+        if final is not None and final.name == CAL and settled.alternative is None:
+            # "The parameters were off": could the knobs that moved stand in for an effect?
+            swaps = stand_ins(fitter, prepared, nominal, final, errors[CAL], progress)
     augmented = final.params if final is not None else nominal
-    errors = uncertainty(prepared, nominal, final) if final is not None else {}
     progress("equation errors of the augmented model, against its noise twin")
     stroke = nominal["mechanics.stroke"]
     equations, remainders = residuals.locate(prepared, twin(prepared, augmented), augmented,
@@ -428,7 +396,7 @@ def _diagnose(prepared: Prepared, out_dir: Path, nominal: ModelParams, cluster: 
         separating = separating_experiment(verdict.winner.fit.params,
                                            verdict.runner_up.fit.params, prepared)
     result = _result(prepared, nominal, settled, ranking, alone_ranking, cal, cal_row, nom_hold,
-                     aug_hold, localization, seen, separating, preds, errors)
+                     aug_hold, localization, seen, separating, preds, errors, swaps)
     progress(f"writing {out_dir}")
     _write_outputs(out_dir, result, augmented, prepared, preds, remainders)
     progress(f"verdict: {result['verdict']['effect']} "
@@ -493,7 +461,7 @@ def _calibration_json(cal: Fit, cal_row: Ranked, settled: Settled, nom_hold) -> 
 def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
             ranking: Sequence[Ranked], alone_ranking: Sequence[Ranked], cal: Fit,
             cal_row: Ranked, nom_hold, aug_hold, localization: dict, seen: dict[str, float],
-            separating: dict | None, preds: dict, errors: dict) -> dict:
+            separating: dict | None, preds: dict, errors: dict, swaps: list[dict]) -> dict:
     verdict = settled.verdict
     win = verdict.winner
     effects = list(win.fit.effect_names) if win else []
@@ -503,6 +471,9 @@ def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
                  (missing["subsystem"] if missing else _subsystem_of(localization))
                  if settled.unlisted else "none")
     reason = settled.reason
+    for row in swaps:
+        if row["preferred"] in ("cannot tell", "effect"):
+            reason += f"; {words(row)}"
     if settled.unlisted:
         reason += f"; {residuals.describe(localization['equations'])}"
     verdict_json = {
@@ -550,7 +521,7 @@ def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
         "schema": SCHEMA,
         "verdict": verdict_json,
         "calibration": {**_calibration_json(cal, cal_row, settled, nom_hold),
-                        "stderr": errors.get(CAL, {})},
+                        "stderr": errors.get(CAL, {}), "stand_ins": swaps},
         "gap": {"metric": METRIC, "nominal": nom_hold.gap, "augmented": aug_hold.gap,
                 "shrinkage": 1.0 - aug_hold.gap / nom_hold.gap if nom_hold.gap > 0 else 0.0,
                 "recalibrated": cal.holdout.gap, "on": "holdout", "paper_metrics": paper},

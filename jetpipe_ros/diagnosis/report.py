@@ -14,8 +14,10 @@ import html
 import io
 
 import numpy as np
+import yaml
 
 from jetpipe_ros.diagnosis.data import Prepared
+from jetpipe_ros.diagnosis.separation import words as stand_in_words
 
 COLORS = {"data": "#444444", "nominal": "#d62728", "augmented": "#1f77b4"}
 
@@ -238,10 +240,17 @@ def summary(result: dict) -> str:
                                  for k, m in cal["traded_with_effect"].items())
                      + ": these knobs and the effect partly stand in for each other in "
                        "these experiments.")
+    for row in cal.get("stand_ins", []):
+        if row["preferred"] in ("recalibration", "no effect"):  # else in the verdict's reason
+            lines.append("Could a knob that moved stand in for an effect? "
+                         + html.escape(stand_in_words(row)) + ".")
+        elif row["separating_experiment"] and not row["separating_experiment"]["in_dataset"]:
+            lines.append(_campaign_entry(row["separating_experiment"]))
     sep = v["separating_experiment"]
     alt = v["ambiguous_with"] or (v["alternative"] or {}).get("explanation")
     if alt:
-        where = ("of this dataset; a longer run of it" if sep and sep["in_dataset"] else
+        where = ("of this dataset; a longer run of it" if sep["in_dataset"] else
+                 "designed for it, not in this dataset; recording it" if sep["designed"] else
                  "of the default campaign (config/campaign.yaml), not in this dataset; "
                  "recording it") if sep else ""
         extra = (f" The experiment '{html.escape(sep['experiment'])}' {where} would "
@@ -249,6 +258,8 @@ def summary(result: dict) -> str:
                  f"{sep['difference_over_noise']:.1f} x the sensor noise)." if sep else "")
         lines.append(f"But <code>{html.escape(alt)}</code> explains the data almost as well: "
                      f"these experiments cannot tell the two apart." + extra)
+        if sep and not sep["in_dataset"]:
+            lines.append(_campaign_entry(sep))
     sig = result["localization"]["signals"]["nominal"]
     worst = max((k for k in sig if k != "gap"), key=lambda k: sig[k], default=None)
     if worst:
@@ -265,6 +276,15 @@ def summary(result: dict) -> str:
                      "experiments (the data cannot tell): "
                      + ", ".join(f"<code>{h}</code>" for h in hidden) + ".")
     return "<p>" + "</p><p>".join(lines) + "</p>"
+
+
+def _campaign_entry(sep: dict) -> str:
+    """The campaign entry of a separating experiment not in the dataset (YAML for
+    ``config/campaign.yaml`` and ``id_recorder``)."""
+    entry = yaml.safe_dump([sep["campaign_entry"]], sort_keys=False, default_flow_style=None)
+    return (f"To record '{html.escape(sep['experiment'])}', add it to the campaign's "
+            f"<code>experiments:</code> (<code>id_recorder</code>, DESIGN.md s.4):"
+            f"<pre>{html.escape(entry)}</pre>")
 
 
 def equation_words(result: dict) -> str:
