@@ -87,7 +87,7 @@ def main() -> None:
         rates = {w: selfcheck_rate(args.cases, w, tmp / f"selfcheck{w}") for w in (1, 2)}
     load1 = os.getloadavg()[0]
     verdicts = ", ".join(f"{r['name']} {r['verdict']['effect']}" for r in fleet["actuators"])
-    print("| scale-out on Dask, default campaign (91.4 s at 1 kHz per dataset) | value |")
+    print("| scale-out on Dask, default campaign (96.4 s at 1 kHz per dataset) | value |")
     print("|---|---|")
     print(f"| LocalCluster start-up, 2 workers, until both warm (median of {args.repeats}) "
           f"| {up:.1f} s (closing: {down:.1f} s) |")
