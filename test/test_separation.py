@@ -82,3 +82,43 @@ def test_stand_in_words_say_what_to_do():
     assert "recording the experiment 'presliding_triangle' (designed for this" in words(row)
     row["preferred"] = "recalibration"
     assert "the data prefer the recalibration" in words(row)
+
+
+def _fit(groups, values, gap, windows):
+    """A fit with held-out error ``gap`` [%] beyond noise (one signal, unit noise variance)."""
+    from jetpipe_ros.diagnosis.calibration import group
+    from jetpipe_ros.diagnosis.fit import Fit
+    from jetpipe_ros.diagnosis.score import Score
+
+    held = Score({"y": 1e-4 + (gap / 100.0) ** 2}, {"y": 1e-4}, {"y": 1000})
+    z = np.concatenate([group(g).to_unit(values[g]) for g in groups])
+    return Fit(tuple(groups), values, z, ModelParams(), held, held, np.asarray(windows), 1, 0.0)
+
+
+def test_an_effect_that_explains_what_the_recalibration_leaves_is_the_answer():
+    """The data prefer pre-sliding in place of a breakaway lowered by 40 %: the answer is the
+    effect on the recalibration with those knobs back at nominal, judged as decide() judges."""
+    from jetpipe_ros.diagnosis.calibration import CALIBRATION, NAME
+    from jetpipe_ros.diagnosis.separation import StandIn, adopt
+    from jetpipe_ros.diagnosis.verdict import rank
+
+    knobs = {k.name: 1.0 for k in CALIBRATION.knobs}
+    rng = np.random.default_rng(0)
+    recal = _fit((NAME,), {NAME: {**knobs, "friction_entry": 0.6}}, 0.48,
+                 1.0 + 0.1 * rng.random(20))
+    bristles = {"bristle_stiffness": 3e4, "bristle_damping": 20.0}
+    swap = _fit((NAME, "friction_dynamics"), {NAME: knobs, "friction_dynamics": bristles}, 0.23,
+                recal.holdout_windows - 0.5)
+    (ranked,) = rank([swap], recal.holdout, recal.holdout_windows, 1e-3)
+    assert ranked.explains
+    row = {"effect": "friction_dynamics", "candidate": "friction_dynamics",
+           "knob_words": ["entry-phase breakaway and Coulomb friction"], "holdout_gap": 0.23,
+           "recalibrated_gap": 0.48, "t_recalibration": -5.0, "shrinkage": ranked.shrinkage,
+           "preferred": "effect", "separating_experiment": None}
+    settled = adopt(StandIn(row, swap, ranked))
+    assert settled.final is swap and settled.calibrated and not settled.unlisted
+    assert settled.verdict.winner.fit.effect == "friction_dynamics"
+    # shrinkage 1 - 0.23/0.48 = 52 %, margin ln(0.48/0.23)/ln(4) = 0.53
+    assert settled.verdict.confidence == pytest.approx(
+        (1 - 0.23 / 0.48) * np.log(0.48 / 0.23) / np.log(4.0), rel=1e-6)
+    assert "the data prefer the effect, which removes 52%" in settled.reason

@@ -16,7 +16,6 @@ complete.
 
 from __future__ import annotations
 
-import dataclasses
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -31,12 +30,13 @@ from jetpipe_ros.diagnosis.calibration import CALIBRATION
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate, effect_of
 from jetpipe_ros.diagnosis.cluster import Cluster
 from jetpipe_ros.diagnosis.data import SIGNALS, Prepared, prepare, swapped
-from jetpipe_ros.diagnosis.fit import BUDGET, Fit, uncertainty
+from jetpipe_ros.diagnosis.fit import BUDGET, Fit, stacked, uncertainty
 from jetpipe_ros.diagnosis.jobs import Fitter, Job
 from jetpipe_ros.diagnosis.localize import by_regime, frequency_response, position_error_pct
 from jetpipe_ros.diagnosis import residuals
 from jetpipe_ros.diagnosis.noise_floor import calibrate, twin
-from jetpipe_ros.diagnosis.separation import separating_experiment, stand_ins, words
+from jetpipe_ros.diagnosis.separation import (adopt, separating_experiment, stand_ins,
+                                              words)
 from jetpipe_ros.diagnosis.prediction import HORIZON, predict
 from jetpipe_ros.diagnosis.score import METRIC, Score, predict_all, score, window_errors
 from jetpipe_ros.diagnosis.verdict import (NOISE_GAP, Ranked, Settled, decide, needs_pairs,
@@ -70,14 +70,6 @@ class Progress:
         if not self.quiet:
             print(f"[{time.perf_counter() - self.start:6.1f} s] {message}", file=sys.stderr,
                   flush=True)
-
-
-def stacked(below: Fit, above: Fit) -> Fit:
-    """``above`` (fitted on ``below``'s model, with ``below``'s knobs held) as one fit of all
-    their groups: same model and scores, values and knobs of both."""
-    return dataclasses.replace(above, groups=below.groups + above.groups,
-                               values={**below.values, **above.values},
-                               z=np.concatenate([below.z, above.z]))
 
 
 def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit,
@@ -368,6 +360,11 @@ def _diagnose(prepared: Prepared, out_dir: Path, nominal: ModelParams, cluster: 
         if final is not None and final.name == CAL and settled.alternative is None:
             # "The parameters were off": could the knobs that moved stand in for an effect?
             swaps = stand_ins(fitter, prepared, nominal, final, errors[CAL], progress)
+            preferred = [s for s in swaps if s.row["preferred"] == "effect"]
+            if preferred:
+                settled = adopt(min(preferred, key=lambda s: s.fit.holdout.gap))
+                final = settled.final
+                errors = uncertainty(prepared, nominal, final)
     augmented = final.params if final is not None else nominal
     progress("equation errors of the augmented model, against its noise twin")
     stroke = nominal["mechanics.stroke"]
@@ -396,7 +393,8 @@ def _diagnose(prepared: Prepared, out_dir: Path, nominal: ModelParams, cluster: 
         separating = separating_experiment(verdict.winner.fit.params,
                                            verdict.runner_up.fit.params, prepared)
     result = _result(prepared, nominal, settled, ranking, alone_ranking, cal, cal_row, nom_hold,
-                     aug_hold, localization, seen, separating, preds, errors, swaps)
+                     aug_hold, localization, seen, separating, preds, errors,
+                     [s.row for s in swaps])
     progress(f"writing {out_dir}")
     _write_outputs(out_dir, result, augmented, prepared, preds, remainders)
     progress(f"verdict: {result['verdict']['effect']} "
@@ -472,7 +470,8 @@ def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
                  if settled.unlisted else "none")
     reason = settled.reason
     for row in swaps:
-        if row["preferred"] in ("cannot tell", "effect"):
+        if row["preferred"] in ("cannot tell", "partly") or (
+                row["preferred"] == "effect" and row["candidate"] != settled.final.name):
             reason += f"; {words(row)}"
     if settled.unlisted:
         reason += f"; {residuals.describe(localization['equations'])}"

@@ -13,6 +13,7 @@ point it has seen.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -88,6 +89,14 @@ class Fit:
         """The effects' names joined with '+' (``none`` when there is none): the verdict's
         vocabulary."""
         return "+".join(self.effect_names) or "none"
+
+
+def stacked(below: Fit, above: Fit) -> Fit:
+    """``above`` (fitted on ``below``'s model, with ``below``'s knobs held) as one fit of all
+    their groups: same model and scores, values and knobs of both."""
+    return dataclasses.replace(above, groups=below.groups + above.groups,
+                               values={**below.values, **above.values},
+                               z=np.concatenate([below.z, above.z]))
 
 
 class _BudgetSpent(Exception):

@@ -17,25 +17,30 @@ effect, the parameters were off", each effect a significantly moved knob may sta
 fitted in the knob's place (the other knobs held at their recalibrated values, the moved ones
 back at nominal) and judged against the recalibration on the held-out data by the test the
 ranking uses (:attr:`verdict.Ranked.significant`): the data prefer one, or cannot tell them
-apart, and then the separating experiment is named.
+apart, and then the separating experiment is named. When the effect in the knobs' place
+*explains* what the recalibration leaves (the ranking's test, :attr:`verdict.Ranked.explains`),
+it is the answer (:func:`adopt`).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from jetpipe_ros.campaign import default_campaign
 from jetpipe_ros.campaign.plan import ExperimentSpec, parse_campaign
-from jetpipe_ros.diagnosis.calibration import CALIBRATION, DESCRIPTIONS
+from jetpipe_ros.diagnosis.calibration import CALIBRATION, DESCRIPTIONS, describe
 from jetpipe_ros.diagnosis.calibration import NAME as CAL
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, effect_of
 from jetpipe_ros.diagnosis.data import SIGNALS, Prepared
-from jetpipe_ros.diagnosis.fit import Fit
+from jetpipe_ros.diagnosis.fit import Fit, stacked
 from jetpipe_ros.diagnosis.jobs import Fitter, Job
 from jetpipe_ros.diagnosis.prediction import predict
-from jetpipe_ros.diagnosis.verdict import rank
+from jetpipe_ros.diagnosis.verdict import Ranked, Settled, Verdict, rank
 from jetpipe_ros.model import ModelParams, simulate
 
 #: Effects (DESIGN.md s.3) that can take the place of a calibration knob in the default
@@ -168,23 +173,34 @@ def suspects(moved: Mapping[str, float], already: Sequence[str]) -> dict[str, li
     return out
 
 
+@dataclass
+class StandIn:
+    """An effect fitted in the place of the knobs it may stand in for (:func:`stand_ins`)."""
+
+    row: dict  #: the ``calibration.stand_ins`` row of diagnosis.json
+    fit: Fit  #: calibration (the knobs replaced back at nominal) and the effect, stacked
+    ranked: Ranked  #: the fit judged against the recalibration (held out)
+
+
 def stand_ins(fitter: Fitter, prepared: Prepared, nominal: ModelParams, recalibrated: Fit,
               stderr: Mapping[str, float | None],
-              progress: Callable[[str], None]) -> list[dict]:
+              progress: Callable[[str], None]) -> list[StandIn]:
     """Each effect a moved knob of ``recalibrated`` may stand in for, fitted in those knobs'
-    place and judged against the recalibration on the held-out data (module text). Returns one
-    row per effect: the knobs, the effect's best form and parameters, both held-out gaps, the
-    paired t of the recalibration's advantage, which the data prefer (``recalibration``,
-    ``effect``, ``cannot tell``, or ``no effect`` when the effect fits to nothing) and, when
-    they cannot tell, the separating experiment."""
+    place and judged against the recalibration on the held-out data (module text). Each row
+    gives the knobs, the effect's best form and parameters, both held-out gaps, the paired t of
+    the recalibration's advantage, which the data prefer and, unless one is preferred, the
+    separating experiment. Preferred: ``recalibration`` (significantly better); ``effect``
+    (it *explains* what the recalibration leaves, :attr:`verdict.Ranked.explains`: the answer
+    then); ``partly`` (significantly better, but by less than :data:`verdict.MIN_SHRINKAGE`);
+    ``cannot tell``; ``no effect`` (the effect fits to nothing)."""
     values = recalibrated.values[CAL]
     todo = suspects(moved_knobs(values, stderr), nominal.enabled_effects())
     if not todo:
         return []
-    jobs, labels, owners = [], [], []
+    jobs, labels, owners, bases = [], [], [], {}
     for effect, knobs in todo.items():
-        base = CALIBRATION.apply(nominal, {k: (1.0 if k in knobs else v)
-                                           for k, v in values.items()})
+        bases[effect] = {k: (1.0 if k in knobs else v) for k, v in values.items()}
+        base = CALIBRATION.apply(nominal, bases[effect])
         for name in CANDIDATES:
             if effect_of(name) == effect:
                 jobs.append(Job(base, (name,)))
@@ -193,33 +209,52 @@ def stand_ins(fitter: Fitter, prepared: Prepared, nominal: ModelParams, recalibr
     progress(f"could the moved knobs stand in for an effect? fitting {len(jobs)} candidates in "
              f"their place")
     fits = fitter.run(jobs, labels)
-    rows = []
+    out = []
     for effect, knobs in todo.items():
         best = min((f for f, o in zip(fits, owners) if o == effect),
                    key=lambda f: f.train.total)
+        best = stacked(dataclasses.replace(recalibrated, values={CAL: bases[effect]},
+                                           z=CALIBRATION.to_unit(bases[effect])), best)
         (cal_vs,) = rank([recalibrated], best.holdout, best.holdout_windows, prepared.dt)
         (eff_vs,) = rank([best], recalibrated.holdout, recalibrated.holdout_windows,
                          prepared.dt)
-        group = CANDIDATES[best.name]
-        if group.vanishes(best.values[best.name]):
+        name = best.effects[0]
+        if CANDIDATES[name].vanishes(best.values[name]):
             preferred = "no effect"  # fitted to nothing: the knobs' move is all there is
         elif cal_vs.significant and cal_vs.improvement > 0.0:
             preferred = "recalibration"
-        elif eff_vs.significant and eff_vs.improvement > 0.0:
+        elif eff_vs.explains:
             preferred = "effect"
+        elif eff_vs.significant and eff_vs.improvement > 0.0:
+            preferred = "partly"
         else:
             preferred = "cannot tell"
-        rows.append({
-            "effect": effect, "candidate": best.name, "form": CANDIDATES[best.name].form,
+        row = {
+            "effect": effect, "candidate": name, "form": CANDIDATES[name].form,
             "knobs": knobs, "knob_words": [DESCRIPTIONS[k][0] for k in knobs],
-            "params": best.values[best.name], "holdout_gap": best.holdout.gap,
+            "params": best.values[name], "holdout_gap": best.holdout.gap,
             "recalibrated_gap": recalibrated.holdout.gap, "t_recalibration": cal_vs.t,
-            "preferred": preferred,
+            "shrinkage": eff_vs.shrinkage, "preferred": preferred,
             "separating_experiment": (separating_experiment(recalibrated.params, best.params,
                                                             prepared)
-                                      if preferred == "cannot tell" else None),
-        })
-    return rows
+                                      if preferred in ("cannot tell", "partly") else None),
+        }
+        out.append(StandIn(row, best, eff_vs))
+    return out
+
+
+def adopt(choice: StandIn) -> Settled:
+    """The answer when the data prefer an effect in the place of knobs that moved: the
+    recalibration with those knobs back at nominal, and the effect. Confidence as
+    :func:`verdict.decide` gives it, the recalibration alone the runner-up: the effect's
+    shrinkage times its margin, ln(recalibration's gap / its gap) / ln(4) capped at 1."""
+    r = choice.ranked
+    gap = max(choice.fit.holdout.gap, 1e-6)
+    margin = min(1.0, max(0.0, math.log(max(r.base_gap, gap) / gap) / math.log(4.0)))
+    confidence = min(max(r.shrinkage, 0.0), 1.0) * margin
+    off = ", ".join(describe(choice.fit.values[CAL])) or "all within 2 % of nominal"
+    reason = f"the nominal parameters were off ({off}); {words(choice.row)}"
+    return Settled(choice.fit, True, Verdict(r, confidence, reason), reason)
 
 
 def words(row: Mapping) -> str:
@@ -231,11 +266,17 @@ def words(row: Mapping) -> str:
     if row["preferred"] == "recalibration":
         return text + f": the data prefer the recalibration (t = {row['t_recalibration']:.1f})"
     if row["preferred"] == "effect":
-        return text + ": the data prefer the effect"
+        return text + (f": the data prefer the effect, which removes "
+                       f"{row['shrinkage']:.0%} of what the recalibration leaves")
     if row["preferred"] == "no effect":
         return text + f": fitted in their place, {row['effect']} vanishes"
     sep = row["separating_experiment"]
-    text += ": these experiments cannot tell them apart"
+    if row["preferred"] == "partly":
+        text += (f": significantly less, but only {row['shrinkage']:.0%} of what the "
+                 f"recalibration leaves (under the 30 % that counts): these experiments do "
+                 f"not settle it")
+    else:
+        text += ": these experiments cannot tell them apart"
     if not sep:
         return text
     apart = (f"their predictions differ most there, {sep['difference_over_noise']:.1f} x the "
