@@ -51,6 +51,8 @@ def test_the_presliding_test_shows_bristles_a_lower_breakaway_does_not():
     # Deflection ~ force / stiffness: about 20 N / 1e5 N/m = 0.2 mm, ten times the position
     # sensor's noise (15 um).
     assert 1e-4 < np.ptp(bristles.y) < 5e-4
+    force = AREA * (bristles.p1 - bristles.p2)
+    assert np.ptp(bristles.y) == pytest.approx(np.ptp(force) / 1e5, rel=0.05)
 
 
 def test_stand_ins_follow_the_direction_of_the_move():

@@ -25,7 +25,6 @@ it is the answer (:func:`adopt`).
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -40,7 +39,7 @@ from jetpipe_ros.diagnosis.data import SIGNALS, Prepared
 from jetpipe_ros.diagnosis.fit import Fit, stacked
 from jetpipe_ros.diagnosis.jobs import Fitter, Job
 from jetpipe_ros.diagnosis.prediction import predict
-from jetpipe_ros.diagnosis.verdict import Ranked, Settled, Verdict, rank
+from jetpipe_ros.diagnosis.verdict import Ranked, Settled, Verdict, confidence_of, rank
 from jetpipe_ros.model import ModelParams, simulate
 
 #: Effects (DESIGN.md s.3) that can take the place of a calibration knob in the default
@@ -246,15 +245,12 @@ def stand_ins(fitter: Fitter, prepared: Prepared, nominal: ModelParams, recalibr
 def adopt(choice: StandIn) -> Settled:
     """The answer when the data prefer an effect in the place of knobs that moved: the
     recalibration with those knobs back at nominal, and the effect. Confidence as
-    :func:`verdict.decide` gives it, the recalibration alone the runner-up: the effect's
-    shrinkage times its margin, ln(recalibration's gap / its gap) / ln(4) capped at 1."""
+    :func:`verdict.decide` gives it (:func:`verdict.confidence_of`), the recalibration alone
+    the runner-up."""
     r = choice.ranked
-    gap = max(choice.fit.holdout.gap, 1e-6)
-    margin = min(1.0, max(0.0, math.log(max(r.base_gap, gap) / gap) / math.log(4.0)))
-    confidence = min(max(r.shrinkage, 0.0), 1.0) * margin
     off = ", ".join(describe(choice.fit.values[CAL])) or "all within 2 % of nominal"
     reason = f"the nominal parameters were off ({off}); {words(choice.row)}"
-    return Settled(choice.fit, True, Verdict(r, confidence, reason), reason)
+    return Settled(choice.fit, True, Verdict(r, confidence_of(r, r.base_gap), reason), reason)
 
 
 def words(row: Mapping) -> str:

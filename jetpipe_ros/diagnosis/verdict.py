@@ -251,18 +251,16 @@ def decide(ranking: Sequence[Ranked], base: Score, base_windows: np.ndarray,
               and not set(r.fit.effect_names) & set(win.fit.effect_names)
               and r.improvement > 0]
     runner = rivals[0] if rivals else None
-    margin = 1.0
     ambiguous = False
     if runner is not None:
         g_win = max(win.fit.holdout.gap, 1e-6)
         g_run = runner.fit.holdout.gap
-        margin = min(1.0, max(0.0, math.log(max(g_run, g_win) / g_win) / math.log(4.0)))
         # Told apart only when the winner's held-out advantage is itself significant.
         t_sep = paired_t(runner.fit.holdout_windows, win.fit.holdout_windows)
         apart = (t_sep >= MIN_T or (runner.fit.holdout.total - win.fit.holdout.total)
                  >= base.noise_total)
         ambiguous = runner.explains and (g_run <= AMBIGUOUS * g_win or not apart)
-    confidence = _clip(win.shrinkage) * margin
+    confidence = confidence_of(win, runner.fit.holdout.gap if runner is not None else None)
     reason = (f"{win.fit.name} removes {win.shrinkage:.0%} of the held-out gap "
               f"({base.gap:.2f} % -> {win.fit.holdout.gap:.2f} %)")
     compensating = [(r, pinned) for r in ranking if len(r.fit.effects) > len(win.fit.effects)
@@ -278,6 +276,16 @@ def decide(ranking: Sequence[Ranked], base: Score, base_windows: np.ndarray,
         reason += (f"; {runner.fit.name} explains the data almost as well "
                    f"({runner.shrinkage:.0%}): these experiments cannot tell them apart")
     return Verdict(win, confidence, reason, runner, ambiguous)
+
+
+def confidence_of(win: Ranked, runner_gap: float | None) -> float:
+    """The winner's shrinkage times its margin over the runner-up's held-out gap,
+    ln(runner-up's gap / winner's gap) / ln(4) capped at 1 (1 without a runner-up)."""
+    margin = 1.0
+    if runner_gap is not None:
+        gap = max(win.fit.holdout.gap, 1e-6)
+        margin = min(1.0, max(0.0, math.log(max(runner_gap, gap) / gap) / math.log(4.0)))
+    return _clip(win.shrinkage) * margin
 
 
 def _clip(x: float) -> float:
