@@ -31,7 +31,7 @@ def replay_csv(params: ModelParams, input_csv: str | Path, out_csv: str | Path,
     The output has the dataset columns ``t,u,y,p1,p2`` (as the sensors would measure them) plus
     ``v``, ``f_load`` and ``friction``.
     """
-    exp = read_experiment(input_csv, required=("t", "u"))
+    exp = read_experiment(input_csv, required=("t", "u"), any_of=())
     trace = replay(params, exp, locked)
     f_load = exp.f_load if exp.f_load is not None else np.zeros_like(exp.t)
     write_experiment(out_csv, {"t": exp.t, "u": trace.u, "y": trace.y_meas, "p1": trace.p1_meas,

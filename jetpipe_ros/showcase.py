@@ -37,7 +37,7 @@ from scipy import signal  # noqa: E402
 
 from jetpipe_ros import fileio  # noqa: E402
 from jetpipe_ros.bag import export_bag  # noqa: E402
-from jetpipe_ros.dataset import Dataset, read_dataset  # noqa: E402
+from jetpipe_ros.dataset import COMPLETE, Dataset, read_dataset  # noqa: E402
 from jetpipe_ros.model import ModelParams, simulate  # noqa: E402
 from jetpipe_ros.model.valve import valve_tf  # noqa: E402
 from jetpipe_ros.package_data import share_file  # noqa: E402
@@ -224,7 +224,7 @@ def main(argv: list[str] | None = None) -> int:
         nodes.stop()
     print("Exporting the bag (jetpipe export) ...")
     dataset = export_bag(out / "bag", out / "dataset", progress=lambda _: None)
-    data = read_dataset(dataset)
+    data = read_dataset(dataset, required=COMPLETE)
     print(f"  {len(data)} experiments, {sum(x.t.size for _, x in data)} samples")
     plot = plot_square_waves(data, out)
     diagnose_gap(dataset, out / "diagnosis")

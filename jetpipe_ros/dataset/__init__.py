@@ -2,7 +2,8 @@
 
 from jetpipe_ros.dataset.dataset import Dataset, Entry, read_dataset, read_index, write_dataset
 from jetpipe_ros.dataset.errors import DatasetError
-from jetpipe_ros.dataset.experiment import Experiment, read_experiment, write_experiment
+from jetpipe_ros.dataset.experiment import (COMPLETE, MEASURED, REQUIRED, Experiment,
+                                            read_experiment, write_experiment)
 
-__all__ = ["Dataset", "DatasetError", "Entry", "Experiment", "read_dataset", "read_experiment",
-           "read_index", "write_dataset", "write_experiment"]
+__all__ = ["COMPLETE", "MEASURED", "REQUIRED", "Dataset", "DatasetError", "Entry", "Experiment",
+           "read_dataset", "read_experiment", "read_index", "write_dataset", "write_experiment"]

@@ -7,8 +7,12 @@
         piston: free        # free | locked (constant-volume test, Sec. 2.3)
         load_force: 0.0     # N, constant, optional
         role: train         # train | holdout, optional
+        units: {u: mV}      # units of this CSV's columns, optional (overrides the top level)
+    units: {t: ms, p1: bar gauge, p2: bar gauge}   # optional, for every experiment
 
-Reading validates the index (errors name the file, the entry and the field) and every CSV it
+Units (:mod:`jetpipe_ros.dataset.units`) are converted to SI when the experiments are read;
+each experiment's notes, and :attr:`Dataset.notes`, say what was converted and what was done to
+its time base (:mod:`jetpipe_ros.dataset.timebase`). Reading validates the index (errors name the file, the entry and the field) and every CSV it
 lists, including physical plausibility (:mod:`jetpipe_ros.dataset.plausibility`). Writing
 builds the whole directory beside the target and renames it into place, so a failed write never
 leaves a half-written dataset behind; it replaces an existing directory only if asked to and
@@ -30,6 +34,7 @@ import yaml
 from jetpipe_ros import fileio
 from jetpipe_ros.dataset.errors import DatasetError
 from jetpipe_ros.dataset.experiment import REQUIRED, Experiment, read_experiment, write_experiment
+from jetpipe_ros.dataset.units import declared
 from jetpipe_ros.fileio import load_yaml
 from jetpipe_ros.model.limits import NOMINAL, Limits
 
@@ -47,6 +52,10 @@ class Entry:
     load_force: float = 0.0  #: constant external load [N]
     role: str | None = None  #: train | holdout | None (unassigned)
     extra: dict[str, Any] = field(default_factory=dict)  #: other fields, kept on rewrite
+    #: Units of the CSV's columns (column -> unit), the top-level ``units:`` of dataset.yaml
+    #: overridden by the entry's own; empty: SI. They describe the file: columns written with
+    #: this entry must be in them (an experiment read back is in SI: write it with ``units={}``).
+    units: dict[str, str] = field(default_factory=dict)
 
     @property
     def name(self) -> str:
@@ -64,6 +73,8 @@ class Entry:
                                "load_force": float(self.load_force)}
         if self.role is not None:
             out["role"] = self.role
+        if self.units:
+            out["units"] = dict(self.units)
         out.update(self.extra)
         return out
 
@@ -86,9 +97,16 @@ class Dataset:
         """The (entry, experiment) pairs whose role is ``role``."""
         return [(e, x) for e, x in self if e.role == role]
 
+    @property
+    def notes(self) -> list[str]:
+        """Every experiment's notes (unit conversions, time-base repairs), each prefixed with
+        its file name, e.g. ``square.csv: 12 rows missing in 3 gaps (...)``."""
+        return [f"{e.file}: {note}" for e, x in self for note in x.notes]
 
-def parse_entry(index: Path, i: int, raw: Any) -> Entry:
-    """Validate experiment ``i`` of ``index``; raise DatasetError naming entry and field."""
+
+def parse_entry(index: Path, i: int, raw: Any, units: Mapping[str, str] | None = None) -> Entry:
+    """Validate experiment ``i`` of ``index``; raise DatasetError naming entry and field.
+    ``units`` are the dataset's (top-level ``units:``), which the entry's own override."""
     where = f"{index}: experiments[{i}]"
     if not isinstance(raw, Mapping):
         raise DatasetError(f"{where}: expected a mapping with at least 'file', got {raw!r}")
@@ -112,7 +130,9 @@ def parse_entry(index: Path, i: int, raw: Any) -> Entry:
     if role is not None and role not in ROLES:
         raise DatasetError(f"{where} ({file}): field 'role' must be one of "
                            f"{', '.join(ROLES)}, got {role!r}")
-    return Entry(file=file, piston=piston, load_force=float(load), role=role, extra=raw)
+    own = declared(f"{where} ({file}): field 'units'", raw.pop("units", None))
+    return Entry(file=file, piston=piston, load_force=float(load), role=role, extra=raw,
+                 units={**(units or {}), **own})
 
 
 def read_index(root: str | Path) -> list[Entry]:
@@ -130,7 +150,8 @@ def read_index(root: str | Path) -> list[Entry]:
         raise DatasetError(f"{index}: not valid YAML: {exc}") from None
     if not isinstance(doc, Mapping) or not isinstance(doc.get("experiments"), list):
         raise DatasetError(f"{index}: expected a top-level 'experiments:' list")
-    entries = [parse_entry(index, i, raw) for i, raw in enumerate(doc["experiments"])]
+    units = declared(f"{index}: units", doc.get("units"))
+    entries = [parse_entry(index, i, raw, units) for i, raw in enumerate(doc["experiments"])]
     if not entries:
         raise DatasetError(f"{index}: 'experiments' is empty")
     seen: set[str] = set()
@@ -144,10 +165,11 @@ def read_index(root: str | Path) -> list[Entry]:
 def read_dataset(root: str | Path, required: Iterable[str] = REQUIRED,
                  limits: Limits = NOMINAL) -> Dataset:
     """Read ``root/dataset.yaml`` and every experiment it lists, validating all of them
-    (values outside ``limits``, the nominal actuator's by default, are refused)."""
+    (values outside ``limits``, the nominal actuator's by default, are refused), converting
+    declared units to SI and putting each on a regular grid (see :attr:`Dataset.notes`)."""
     root = Path(root)
     entries = read_index(root)
-    experiments = [read_experiment(root / e.file, required, limits) for e in entries]
+    experiments = [read_experiment(root / e.file, required, limits, e.units) for e in entries]
     return Dataset(root=root, entries=entries, experiments=experiments)
 
 

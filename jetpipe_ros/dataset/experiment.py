@@ -1,12 +1,18 @@
 """One experiment as a CSV file: columns ``t,u,y,p1,p2`` [s, V, m, Pa absolute] (DESIGN.md s.5).
 
-Optional columns ``v`` [m/s] and ``f_load`` [N] are read when present; other columns are ignored.
-Reading checks what a wrong answer would otherwise hide: a header with the required columns,
-numbers everywhere (errors give file, line and column), finite values, strictly increasing,
-regularly sampled time, and physically possible values in the contract's units
-(:mod:`jetpipe_ros.dataset.plausibility`: ranges, likely unit mistakes). Writing goes through a
-temporary file renamed into place (:mod:`jetpipe_ros.fileio`), so a failed write never leaves a
-half-written file behind.
+``t`` and ``u`` are required, and at least one measured column of ``y``, ``p1``, ``p2``: a
+bench may have a position sensor only, or one pressure sensor. Optional columns ``v`` [m/s]
+and ``f_load`` [N] are read when present; other columns are ignored. Row k pairs the command
+``u_k`` with the measurements taken at ``t_k``. Columns in other units are converted to SI
+when ``dataset.yaml`` declares them (:mod:`jetpipe_ros.dataset.units`). Reading checks what a
+wrong answer would otherwise hide: a header with the required columns, numbers everywhere
+(errors give file, line and column), finite values, strictly increasing time, and physically
+possible values in the contract's units (:mod:`jetpipe_ros.dataset.plausibility`: ranges,
+likely unit mistakes; run on the SI values, after any declared conversion). It then puts the
+record on a regular grid (:mod:`jetpipe_ros.dataset.timebase`: jitter snapped, lost rows
+filled and marked in ``valid``, irregular stamps resampled) and says in the experiment's notes
+what it converted or changed. Writing goes through a temporary file renamed into place
+(:mod:`jetpipe_ros.fileio`), so a failed write never leaves a half-written file behind.
 """
 
 from __future__ import annotations
@@ -21,14 +27,18 @@ from pathlib import Path
 import numpy as np
 
 from jetpipe_ros import fileio
-from jetpipe_ros.dataset import plausibility
+from jetpipe_ros.dataset import plausibility, timebase
 from jetpipe_ros.dataset.errors import DatasetError
+from jetpipe_ros.dataset.units import declared, to_si
 from jetpipe_ros.model.limits import NOMINAL, Limits
 
-REQUIRED = ("t", "u", "y", "p1", "p2")
+#: Columns every experiment needs.
+REQUIRED = ("t", "u")
+#: Measured columns, optional each; an experiment needs at least one of them.
+MEASURED = ("y", "p1", "p2")
+#: Every sensor: what identification needs (``required=COMPLETE``).
+COMPLETE = (*REQUIRED, *MEASURED)
 OPTIONAL = ("v", "f_load")
-#: Allowed relative deviation of a sample interval from the median interval.
-SAMPLING_TOLERANCE = 0.01
 
 
 @dataclass
@@ -44,6 +54,11 @@ class Experiment:
     f_load: np.ndarray | None = None  #: external load [N]
     name: str = ""
     extra: dict[str, np.ndarray] = field(default_factory=dict)
+    #: True where the row was measured, False where it was filled in (a row lost by the
+    #: logger); None when every row was measured.
+    valid: np.ndarray | None = None
+    #: What the reader converted or changed, one plain sentence each (no file name).
+    notes: list[str] = field(default_factory=list)
 
     @property
     def dt(self) -> float:
@@ -52,21 +67,27 @@ class Experiment:
 
     def columns(self) -> dict[str, np.ndarray]:
         """All present columns in contract order, then extras."""
-        cols = {k: getattr(self, k) for k in (*REQUIRED, *OPTIONAL)}
+        cols = {k: getattr(self, k) for k in (*COMPLETE, *OPTIONAL)}
         cols = {k: v for k, v in cols.items() if v is not None}
         cols.update(self.extra)
         return cols
 
 
 def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
-                    limits: Limits = NOMINAL) -> Experiment:
+                    limits: Limits = NOMINAL, units: Mapping[str, str] | None = None, *,
+                    any_of: Iterable[str] = MEASURED) -> Experiment:
     """Read and validate an experiment CSV; raise DatasetError naming file, line and column.
 
-    Values outside ``limits`` (the nominal actuator's by default) are refused as physically
-    impossible, with the likely unit mistake when a whole column is off.
+    ``required`` columns must all be present, and at least one of ``any_of`` (the measured
+    columns by default; ``()`` for a command-only file, as ``jetpipe simulate`` reads).
+    ``units`` (column -> unit, as declared in dataset.yaml) are converted to SI first. Values
+    outside ``limits`` (the nominal actuator's by default) are refused as physically
+    impossible, with the likely unit mistake when a whole column is off. The experiment
+    returned is on a regular grid (:mod:`jetpipe_ros.dataset.timebase`).
     """
     path = Path(path)
-    required = tuple(required)
+    required, any_of = tuple(required), tuple(any_of)
+    declared(f"{path}: units", units)  # a bad declaration before the file
     try:
         handle = path.open(newline="")
     except OSError as exc:
@@ -81,7 +102,10 @@ def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
         if missing:
             raise DatasetError(f"{path}: line 1: missing column(s) {', '.join(missing)} "
                                f"(header has {', '.join(header)})")
-        wanted = [c for c in (*REQUIRED, *OPTIONAL) if c in header]
+        if any_of and not any(c in header for c in any_of):
+            raise DatasetError(f"{path}: line 1: no measured column: needs at least one of "
+                               f"{', '.join(any_of)} (header has {', '.join(header)})")
+        wanted = [c for c in (*COMPLETE, *OPTIONAL) if c in header]
         index = {c: header.index(c) for c in wanted}
         rows: list[list[float]] = []
         lines: list[int] = []
@@ -106,25 +130,13 @@ def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
     if len(rows) < 2:
         raise DatasetError(f"{path}: needs at least 2 data rows, has {len(rows)}")
     data = np.array(rows)
+    line_nos = np.array(lines)
     cols = {c: np.ascontiguousarray(data[:, j]) for j, c in enumerate(wanted)}
-    _check_time(path, cols["t"])
-    plausibility.check(path, cols, limits, np.array(lines))
-    return Experiment(name=path.stem, **cols)
-
-
-def _check_time(path: Path, t: np.ndarray) -> None:
-    dts = np.diff(t)
-    bad = np.flatnonzero(dts <= 0.0)
-    if bad.size:
-        i = int(bad[0])
-        raise DatasetError(f"{path}: line {i + 3}, column 't': time is not strictly increasing "
-                           f"({t[i]:.6g} then {t[i + 1]:.6g} s)")
-    med = float(np.median(dts))
-    irregular = np.flatnonzero(np.abs(dts - med) > SAMPLING_TOLERANCE * med)
-    if irregular.size:
-        i = int(irregular[0])
-        raise DatasetError(f"{path}: line {i + 3}, column 't': irregular sampling, step "
-                           f"{dts[i]:.6g} s where the median step is {med:.6g} s")
+    notes = to_si(f"{path}: units", cols, units)
+    timebase.check_increasing(path, cols["t"], line_nos)
+    plausibility.check(path, cols, limits, line_nos)
+    cols, valid, changes = timebase.regularise(path, cols, line_nos)
+    return Experiment(name=path.stem, **cols, valid=valid, notes=notes + changes)
 
 
 def write_experiment(path: str | Path, columns: Mapping[str, np.ndarray]) -> None:

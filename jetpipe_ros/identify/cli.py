@@ -9,7 +9,7 @@ from __future__ import annotations
 
 def _run(args) -> int:
     from jetpipe_ros import fileio
-    from jetpipe_ros.dataset import DatasetError, read_dataset
+    from jetpipe_ros.dataset import COMPLETE, DatasetError, read_dataset
     from jetpipe_ros.identify.identify import PROCEDURES, identify
     from jetpipe_ros.identify.report import html_report, summary
     from jetpipe_ros.model import ModelParams, load_params
@@ -30,7 +30,7 @@ def _run(args) -> int:
         required = chosen
     else:
         chosen, required = list(PROCEDURES), []
-    data = read_dataset(args.dataset, limits=Limits.from_params(base))
+    data = read_dataset(args.dataset, required=COMPLETE, limits=Limits.from_params(base))
     ident = identify(data, base, chosen, required)
     text = summary(ident)
     header = "".join(f"# {line}\n" for line in text.splitlines())

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from jetpipe_ros.campaign import Campaign, parse_campaign, run_campaign_offline
-from jetpipe_ros.dataset import Dataset, read_dataset
+from jetpipe_ros.dataset import COMPLETE, Dataset, read_dataset
 from jetpipe_ros.model import ModelParams
 
 #: The paper's charge/discharge voltages (Sec. 2.3) [V].
@@ -128,4 +128,4 @@ def record(params: ModelParams, experiments: Sequence[Experiment], root: str | P
     """Run ``experiments`` (plan entries, e.g. from the functions above) offline with
     ``params`` and read back the dataset written to ``root``."""
     plan = parse_campaign({"experiments": list(experiments)}, "synthetic.record")
-    return read_dataset(run_campaign_offline(params, plan, root))
+    return read_dataset(run_campaign_offline(params, plan, root), required=COMPLETE)
