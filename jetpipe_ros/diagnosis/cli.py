@@ -22,6 +22,9 @@ def _diagnose(args: argparse.Namespace) -> int:
     result = diagnose(dirs[0], args.out, params, workers=args.jobs, quiet=args.quiet,
                       scheduler=args.scheduler)
     v, g = result["verdict"], result["gap"]
+    print(f"time base: {result['data']['time_base']['explanation']}")
+    if not v["model_fits"]:
+        print(f"the model does not describe this hardware: {v['reason']}")
     print(f"verdict: {v['effect']} (subsystem {v['subsystem']}, confidence "
           f"{v['confidence']:.2f})")
     print(f"held-out gap ({g['metric']}): nominal {g['nominal']:.2f} %, augmented "

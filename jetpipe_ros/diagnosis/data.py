@@ -5,6 +5,14 @@ the measured position (Savitzky-Golay, zero phase) and the masks of samples used
 (train) and for judging (holdout). When ``dataset.yaml`` assigns no holdout the split is chosen
 here and stated (:attr:`Prepared.split_note`): every third experiment when there are at least
 three, else the last 30 % of each experiment.
+
+Records from real loggers need not have every sensor: the position, and none, one or both
+chamber pressures (:attr:`Record.sensors`; a pressure not measured is NaN and the model carries
+its own). Rows the logger lost were filled in on the regular grid by the dataset reader
+(:attr:`jetpipe_ros.dataset.Experiment.valid`): they are never compared with the model, and an
+experiment is split where more than :data:`SPLIT_GAP` s are missing in a row. A logger whose
+measurements sit a whole number of rows off the command (:mod:`alignment`) is corrected here
+(``shift_rows`` of :func:`prepare`).
 """
 
 from __future__ import annotations
@@ -24,6 +32,13 @@ MIN_TRAIN_S = 2.0
 MIN_HOLDOUT_S = 1.0
 #: Floors of the per-signal normalisation scales: 1 mm and 0.1 bar.
 MIN_SCALE = {"y": 1e-3, "p1": 1e4, "p2": 1e4}
+#: Least run of lost rows [s] at which an experiment is split in two. The command over lost rows
+#: is unknown and held; after a command step the valve chain settles (5 %) in 25.5 ms, so past
+#: that length the valve's state after the gap depends more on the commands lost than on those
+#: recorded, and a fresh start (with the prediction warm-up) describes it better than the hold.
+SPLIT_GAP = 0.0255
+#: Fewest samples a record (or the part of a split one) needs to be predicted and scored.
+MIN_SAMPLES = 50
 
 
 @dataclass
@@ -35,13 +50,14 @@ class Record:
     t: np.ndarray  #: time [s], starting at 0
     u: np.ndarray  #: valve command [V]
     y: np.ndarray  #: measured position [m]
-    p1: np.ndarray  #: measured chamber 1 pressure [Pa]
-    p2: np.ndarray  #: measured chamber 2 pressure [Pa]
+    p1: np.ndarray  #: measured chamber 1 pressure [Pa] (NaN when not measured)
+    p2: np.ndarray  #: measured chamber 2 pressure [Pa] (NaN when not measured)
     v: np.ndarray  #: velocity estimated from y [m/s]
     smooth: dict[str, np.ndarray]  #: y, p1, p2 smoothed (zero phase), to restart predictions
     f_load: np.ndarray  #: external load [N]
-    train: np.ndarray  #: bool mask of training samples
-    holdout: np.ndarray  #: bool mask of held-out samples
+    train: np.ndarray  #: bool mask of training samples (measured rows only)
+    holdout: np.ndarray  #: bool mask of held-out samples (measured rows only)
+    sensors: tuple[str, ...] = SIGNALS  #: the signals the record measured
 
     @property
     def locked(self) -> bool:
@@ -59,10 +75,16 @@ class Record:
         return getattr(self, name)
 
     def signals(self) -> tuple[str, ...]:
-        """The signals scored for this experiment."""
+        """The signals scored for this experiment: those it measured that the model explains."""
         if self.regulated:
-            return ("y",)
-        return ("p1", "p2") if self.locked else SIGNALS
+            scored: tuple[str, ...] = ("y",)
+        else:
+            scored = ("p1", "p2") if self.locked else SIGNALS
+        return tuple(s for s in scored if s in self.sensors)
+
+    def measured(self, name: str) -> bool:
+        """Whether the record has signal ``name`` (y, p1, p2)."""
+        return name in self.sensors
 
 
 @dataclass
@@ -81,9 +103,22 @@ class Prepared:
     #: the same per held-out prediction window (aligned with :func:`score.window_errors`)
     floor_windows: np.ndarray | None = None
 
+    #: corrections made to the records (units, time base, lost rows, alignment), in words
+    corrections: list[str] = field(default_factory=list)
+
     def seconds(self, role: str) -> float:
         """Total length of the ``role`` samples [s]."""
         return sum(float(getattr(r, role).sum()) for r in self.records) * self.dt
+
+    @property
+    def sensors(self) -> tuple[str, ...]:
+        """The signals measured in at least one record."""
+        return tuple(s for s in SIGNALS if any(r.measured(s) for r in self.records))
+
+    def has_both_pressures(self) -> bool:
+        """Whether every record that is not a locked or regulated test measured both pressures
+        (what the equation errors of the force balance and the mechanics replay need)."""
+        return all(r.measured("p1") and r.measured("p2") for r in self.records)
 
 
 def velocity(y: np.ndarray, dt: float, window_s: float = 0.021) -> np.ndarray:
@@ -111,8 +146,12 @@ def noise_level(x: np.ndarray) -> float:
     return float(median_abs_deviation(d2, scale="normal") / np.sqrt(6.0))
 
 
-def prepare(dataset: Dataset) -> Prepared:
-    """Validate a dataset for the diagnosis and choose the split; raise DatasetError if unusable."""
+def prepare(dataset: Dataset, shift_rows: int = 0) -> Prepared:
+    """Validate a dataset for the diagnosis and choose the split; raise DatasetError if unusable.
+
+    ``shift_rows`` corrects a logger's time base (see :mod:`alignment`): positive when its
+    measurements are that many rows early (row k holds the measurement taken k rows after the
+    command beside it was applied), negative when late."""
     dts = [exp.dt for exp in dataset.experiments]
     dt = float(np.median(dts))
     for (entry, exp), d in zip(dataset, dts):
@@ -144,16 +183,41 @@ def prepare(dataset: Dataset) -> Prepared:
         note = ("no holdout marked in dataset.yaml and fewer than 3 experiments: the last 30 % "
                 "of each experiment is held out")
     records = []
+    notes = list(getattr(dataset, "notes", []))
     for (entry, exp), held in zip(dataset, holdout):
-        records.append(_record(entry, exp, dt, held, by_time))
-    noise = {s: float(np.median([noise_level(r.signal(s)) for r in records
+        exp = _shifted(exp, shift_rows)
+        parts = _parts(exp, dt)
+        if len(parts) > 1:
+            notes.append(f"{entry.file}: split into {len(parts)} parts at runs of more than "
+                         f"{SPLIT_GAP * 1e3:g} ms of lost rows")
+        for i, (lo, hi) in enumerate(parts):
+            name = entry.name if len(parts) == 1 else f"{entry.name}[{i + 1}]"
+            if hi - lo < MIN_SAMPLES:
+                notes.append(f"{entry.file}: part {name} left out: {hi - lo} samples, the "
+                             f"diagnosis needs at least {MIN_SAMPLES}")
+                continue
+            rec = _record(entry, _slice(exp, lo, hi), dt, held, by_time, name)
+            if not rec.signals():
+                notes.append(f"{entry.file}: left out: a {entry.piston}-piston test without "
+                             f"the signals it explains ({', '.join(rec.sensors) or 'none'} "
+                             f"measured)")
+                continue
+            records.append(rec)
+    if not records:
+        raise DatasetError(f"{dataset.root}: no experiment the diagnosis can use "
+                           f"({'; '.join(notes)})")
+    noise = {s: float(np.median([noise_level(_measured_rows(r, s)) for r in records
                                  if s in r.signals()] or [0.0])) for s in SIGNALS}
     scale = {}
     for s in SIGNALS:
-        values = [r.signal(s) for r in records if s in r.signals()]
+        values = [_measured_rows(r, s) for r in records if s in r.signals()]
         spread = float(np.std(np.concatenate(values))) if values else 0.0
         scale[s] = max(spread, MIN_SCALE[s])
-    prepared = Prepared(records, dt, noise, scale, note)
+    prepared = Prepared(records, dt, noise, scale, note, corrections=notes)
+    missing = [s for s in SIGNALS if s not in prepared.sensors]
+    if missing:
+        prepared.notes.append(f"no {' or '.join(missing)} measured: the diagnosis compares "
+                              f"{', '.join(prepared.sensors)} only")
     for role, least in (("train", MIN_TRAIN_S), ("holdout", MIN_HOLDOUT_S)):
         have = prepared.seconds(role)
         if have < least:
@@ -174,16 +238,79 @@ def swapped(prepared: Prepared) -> Prepared:
                                split_note=f"roles exchanged ({prepared.split_note})")
 
 
-def _record(entry: Entry, exp: Experiment, dt: float, held: bool, by_time: bool) -> Record:
+def _measured_rows(rec: Record, signal: str) -> np.ndarray:
+    """The rows of a signal that were measured (not filled in over lost rows)."""
+    x = rec.signal(signal)
+    return x[rec.train | rec.holdout] if (rec.train | rec.holdout).any() else x
+
+
+def _shifted(exp: Experiment, rows: int) -> Experiment:
+    """The experiment with its measured columns moved ``rows`` rows later relative to the
+    command (``rows`` > 0: the logger wrote each measurement that many rows early)."""
+    if rows == 0:
+        return exp
+    n = exp.t.size - abs(rows)
+    cmd = slice(rows, None) if rows > 0 else slice(0, n)
+    meas = slice(0, n) if rows > 0 else slice(-rows, None)
+    out = dataclasses.replace(exp, t=exp.t[cmd], u=exp.u[cmd], extra={})
+    if exp.f_load is not None:
+        out.f_load = exp.f_load[cmd]
+    for c in ("y", "p1", "p2", "v"):
+        x = getattr(exp, c)
+        setattr(out, c, None if x is None else x[meas])
+    valid = getattr(exp, "valid", None)
+    if valid is not None:
+        out.valid = valid[meas]
+    return out
+
+
+def _slice(exp: Experiment, lo: int, hi: int) -> Experiment:
+    """Rows lo..hi-1 of an experiment."""
+    if lo == 0 and hi == exp.t.size:
+        return exp
+    out = dataclasses.replace(exp, extra={})
+    for c in ("t", "u", "y", "p1", "p2", "v", "f_load", "valid"):
+        x = getattr(exp, c, None)
+        if x is not None:
+            setattr(out, c, x[lo:hi])
+    return out
+
+
+def _parts(exp: Experiment, dt: float) -> list[tuple[int, int]]:
+    """Row ranges of an experiment between runs of more than :data:`SPLIT_GAP` lost rows."""
+    valid = getattr(exp, "valid", None)
+    n = exp.t.size
+    if valid is None or valid.all():
+        return [(0, n)]
+    longest = int(np.ceil(SPLIT_GAP / dt - 1e-9))
+    lost = np.flatnonzero(~valid)
+    runs = np.split(lost, np.flatnonzero(np.diff(lost) > 1) + 1)
+    parts, start = [], 0
+    for run in runs:
+        if run.size > longest:
+            parts.append((start, int(run[0])))
+            start = int(run[-1]) + 1
+    parts.append((start, n))
+    return [(lo, hi) for lo, hi in parts if hi > lo]
+
+
+def _record(entry: Entry, exp: Experiment, dt: float, held: bool, by_time: bool,
+            name: str) -> Record:
     n = exp.t.size
     if by_time:
         holdout = np.arange(n) >= int(0.7 * n)
     else:
         holdout = np.full(n, held)
+    valid = getattr(exp, "valid", None)
+    measured = np.ones(n, dtype=bool) if valid is None else np.asarray(valid, dtype=bool)
     f_load = exp.f_load if exp.f_load is not None else np.full(n, entry.load_force)
-    y = exp.y
-    smooth = {"y": smoothed(y, dt), "p1": smoothed(exp.p1, dt), "p2": smoothed(exp.p2, dt)}
-    return Record(name=entry.name, entry=entry, t=exp.t - exp.t[0], u=exp.u, y=y, p1=exp.p1,
-                  p2=exp.p2, v=np.zeros(n) if entry.locked else velocity(y, dt), smooth=smooth,
-                  f_load=np.ascontiguousarray(f_load, dtype=float), train=~holdout,
-                  holdout=holdout)
+    sensors = tuple(s for s in SIGNALS if getattr(exp, s) is not None)
+    signals = {s: (np.asarray(getattr(exp, s), dtype=float) if s in sensors
+                   else np.full(n, np.nan)) for s in SIGNALS}
+    y = signals["y"]
+    smooth = {s: smoothed(x, dt) if s in sensors else x for s, x in signals.items()}
+    v = np.zeros(n) if entry.locked or "y" not in sensors else velocity(y, dt)
+    return Record(name=name, entry=entry, t=exp.t - exp.t[0], u=exp.u, y=y, p1=signals["p1"],
+                  p2=signals["p2"], v=v, smooth=smooth,
+                  f_load=np.ascontiguousarray(f_load, dtype=float), train=~holdout & measured,
+                  holdout=holdout & measured, sensors=sensors)

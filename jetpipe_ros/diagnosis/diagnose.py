@@ -26,6 +26,7 @@ from threadpoolctl import threadpool_limits
 
 from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.diagnosis import calibration
+from jetpipe_ros.diagnosis.alignment import Alignment, align
 from jetpipe_ros.diagnosis.calibration import CALIBRATION
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate, effect_of
 from jetpipe_ros.diagnosis.cluster import Cluster
@@ -37,7 +38,7 @@ from jetpipe_ros.diagnosis import residuals
 from jetpipe_ros.diagnosis.noise_floor import calibrate, twin
 from jetpipe_ros.diagnosis.separation import (adopt, separating_experiment, stand_ins,
                                               words)
-from jetpipe_ros.diagnosis.prediction import HORIZON, predict
+from jetpipe_ros.diagnosis.prediction import HORIZON, persistence, predict
 from jetpipe_ros.diagnosis.score import METRIC, Score, predict_all, score, window_errors
 from jetpipe_ros.diagnosis.verdict import (NOISE_GAP, Ranked, Settled, decide, needs_pairs,
                                            paired_t, rank, settle)
@@ -254,16 +255,18 @@ def subsystem_gaps(prepared: Prepared, nominal: ModelParams) -> dict:
     """Gap of each subsystem replayed with its inputs held on the measurements."""
     chambers = score(prepared, predict_all(nominal, prepared, None, "chambers"), None,
                      ("p1", "p2"))
+    # The mechanics replay needs both pressures measured: it is driven by them.
     mechanics = score(prepared, [predict(nominal, r, prepared.dt, "mechanics")
-                                 if not r.locked else None for r in prepared.records], None,
-                      ("y",))
+                                 if not r.locked and r.measured("p1") and r.measured("p2")
+                                 else None for r in prepared.records], None, ("y",))
     offsets = []
     for rec in prepared.records:
-        if rec.regulated:
+        if rec.regulated or not rec.measured("p1"):
             continue
         pred = predict(nominal, rec, prepared.dt, "chambers")
         steady = np.abs(np.gradient(rec.p1, prepared.dt)) < 2e4
         steady[: rec.t.size // 10] = False
+        steady &= rec.train | rec.holdout
         if steady.sum() > 100:
             offsets.append(float(np.median((rec.p1 - pred.p1)[steady])))
     return {
@@ -291,15 +294,25 @@ def diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams |
     if out_dir.exists() and not out_dir.is_dir():
         raise ParameterError(f"--out {out_dir}: exists and is not a directory")
     progress(f"reading {dataset_dir}")
-    prepared = prepare(read_dataset(dataset_dir, limits=Limits.from_params(nominal)))
+    dataset = read_dataset(dataset_dir, limits=Limits.from_params(nominal))
+    prepared = prepare(dataset)
+    for note in prepared.corrections:
+        progress(f"corrected: {note}")
     # The linear algebra here is on small matrices: BLAS threads only spin and take the cores
     # the fitting processes need (measured: 2x slower per fit with them).
-    with threadpool_limits(1), Cluster(workers, scheduler) as cluster:
-        return _diagnose(prepared, out_dir, nominal, cluster, progress)
+    with threadpool_limits(1):
+        progress("time base: where the measurements sit against the command")
+        aligned = align(prepared, nominal)
+        progress(f"time base: {aligned.words}")
+        if aligned.shift_rows:
+            prepared = prepare(dataset, aligned.shift_rows)
+            prepared.corrections.append(f"time base: {aligned.words}")
+        with Cluster(workers, scheduler) as cluster:
+            return _diagnose(prepared, out_dir, nominal, cluster, progress, aligned)
 
 
 def _diagnose(prepared: Prepared, out_dir: Path, nominal: ModelParams, cluster: Cluster,
-              progress: Progress) -> dict:
+              progress: Progress, aligned: Alignment) -> dict:
     already = nominal.enabled_effects()
     dt = prepared.dt
     progress(f"{len(prepared.records)} experiments, {prepared.seconds('train'):.1f} s train, "
@@ -314,7 +327,9 @@ def _diagnose(prepared: Prepared, out_dir: Path, nominal: ModelParams, cluster: 
     nom_train = score(prepared, nom_all, "train")
     subsystems = subsystem_gaps(prepared, nominal)
 
-    candidates = [c for c in CANDIDATES.values() if c.effect not in already]
+    unjudged = cannot_judge(prepared)
+    candidates = [c for c in CANDIDATES.values()
+                  if c.effect not in already and c.effect not in unjudged]
     names = [c.name for c in candidates]
     progress("how visible each candidate would be at its typical size")
     seen = {c.name: visibility(prepared, nominal, nom_all, c) for c in candidates}
@@ -372,6 +387,12 @@ def _diagnose(prepared: Prepared, out_dir: Path, nominal: ModelParams, cluster: 
                                              stroke)
     aug_all = predict_all(augmented, prepared, None) if final is not None else nom_all
     aug_hold = score(prepared, aug_all, "holdout")
+    still = score(prepared, [persistence(r, dt) for r in prepared.records], "holdout")
+    fits = aug_hold.gap < still.gap
+    if not fits:
+        progress(f"the best model misses by {aug_hold.gap:.0f} % of the signals' spread, no "
+                 f"better than holding the measurements ({still.gap:.0f} %): the model does "
+                 f"not describe this hardware")
     preds = {"nominal": nom_all, "augmented": aug_all}
     localization = {
         "metric": METRIC, "horizon_s": HORIZON,
@@ -379,7 +400,8 @@ def _diagnose(prepared: Prepared, out_dir: Path, nominal: ModelParams, cluster: 
                     "nominal_train": nom_train.to_json()},
         "subsystems": subsystems,
         "regimes": by_regime(prepared, preds, "holdout", stroke),
-        "frequency": frequency_response(prepared, preds),
+        "frequency": frequency_response(prepared, preds, next(
+            s for s in ("p1", "p2", "y") if s in prepared.sensors)),
         "equations": equations,
     }
     if settled.unlisted and final is not None:
@@ -395,12 +417,55 @@ def _diagnose(prepared: Prepared, out_dir: Path, nominal: ModelParams, cluster: 
     result = _result(prepared, nominal, settled, ranking, alone_ranking, cal, cal_row, nom_hold,
                      aug_hold, localization, seen, separating, preds, errors,
                      [s.row for s in swaps])
+    result["data"].update(_data_json(prepared, aligned, unjudged))
+    result["gap"]["persistence"] = still.gap
+    result["verdict"]["model_fits"] = fits
+    if not fits:
+        augmented = nominal
+        result["verdict"].update(_no_fit(result["verdict"], aug_hold.gap, still.gap),
+                                 subsystem=_subsystem_of(localization))
     progress(f"writing {out_dir}")
     _write_outputs(out_dir, result, augmented, prepared, preds, remainders)
     progress(f"verdict: {result['verdict']['effect']} "
              f"(confidence {result['verdict']['confidence']:.2f}); "
              f"{result['verdict']['reason']}")
     return result
+
+
+def cannot_judge(prepared: Prepared) -> dict[str, str]:
+    """The effects these records cannot judge, with the reason (left out of the candidates
+    rather than ranked on evidence they do not hold)."""
+    out = {}
+    if not any(s in prepared.sensors for s in ("p1", "p2")):
+        out["sensor_dynamics"] = ("a pressure sensor's lag, bias or drift: the records have no "
+                                  "pressure sensor")
+    if "y" not in prepared.sensors or all(r.locked for r in prepared.records):
+        for effect in ("friction_dynamics", "moving_mass"):
+            out[effect] = "the mechanics: no free-piston record with a position sensor"
+    return out
+
+
+def _data_json(prepared: Prepared, aligned: Alignment, unjudged: dict[str, str]) -> dict:
+    """What the diagnosis read and corrected: the ``data`` section's additions."""
+    lost = sum(int((~(r.train | r.holdout)).sum()) for r in prepared.records)
+    return {"sensors": list(prepared.sensors), "corrections": prepared.corrections,
+            "time_offset_s": aligned.offset_s, "time_offset_stderr_s": aligned.stderr_s,
+            "time_base": aligned.to_json(prepared.dt), "cannot_judge": unjudged,
+            "rows_not_compared": lost}
+
+
+def _no_fit(verdict: dict, gap: float, still: float) -> dict:
+    """The verdict when even the best model predicts no better than holding the measurements:
+    no effect named, the model class said not to describe the hardware."""
+    return {"effect": "unlisted", "effects": [], "forms": {}, "candidate": None,
+            "params": {}, "stderr": {}, "confidence": 0.0, "partial": None,
+            "ambiguous_with": None, "alternative": None, "form_comparison": {},
+            "remaining_share": None,
+            "reason": (f"the model does not describe this hardware: even the best augmented "
+                       f"model misses the held-out measurements by {gap:.0f} % of their "
+                       f"spread, no better than holding each signal at its last measured value "
+                       f"({still:.0f} %); no candidate can be the answer (the best was "
+                       f"{verdict['effect']}: {verdict['reason']})")}
 
 
 def _subsystem_of(localization: dict) -> str:

@@ -215,6 +215,7 @@ def _brent(obj: _Objective, start: np.ndarray) -> None:
 
 
 def uncertainty(prepared: Prepared, nominal: ModelParams, fitted: Fit,
+                groups: Sequence[KnobGroup] | None = None,
                 step: float = 0.01) -> dict[str, dict[str, float | None]]:
     """Standard errors of every fitted parameter (effects and calibration knobs), from the
     curvature of the training error at the fit, each marginal over the others: what a
@@ -225,9 +226,10 @@ def uncertainty(prepared: Prepared, nominal: ModelParams, fitted: Fit,
     -N/2 log(C) for the training error C = r.r, so the covariance of the knobs is
     C / N (J^T J)^-1, J the Jacobian of the residuals over all the fit's knobs (central
     differences, ``step`` in the unit-scaled knobs). A knob the error does not depend on there
-    (a delay between two sub-steps) has no standard error (None).
+    (a delay between two sub-steps) has no standard error (None). ``groups`` are the fit's
+    knob groups when they are not candidates or the calibration (looked up by name).
     """
-    groups = [group(g) for g in fitted.groups]
+    groups = list(groups) if groups is not None else [group(g) for g in fitted.groups]
     obj = _Objective(prepared, nominal, groups, budget=10**9)
     r0 = obj.residuals(fitted.z)
     jac = np.empty((r0.size, fitted.z.size))

@@ -2,8 +2,8 @@
 
 Regimes are read from the measurements: for free-piston experiments the motion (stuck, reversal,
 moving, high velocity, end stop) and the valve amplitude (small |u| < 0.6 V, large); for every
-experiment whether chamber 1 is charging or discharging. Frequency responses go from the command
-to the chamber 1 pressure, estimated with Welch cross-spectra of data and model over the samples
+experiment with a pressure sensor whether chamber 1 is charging or discharging. Frequency
+responses go from the command to a chamber pressure (the position without one), estimated with Welch cross-spectra of data and model over the samples
 where the data are coherent, and compared per band in gain [%] and phase [deg]: the paper's
 validation metrics.
 """
@@ -33,11 +33,16 @@ def regimes(rec: Record, dt: float, stroke: float = 0.05) -> dict[str, np.ndarra
     """Bool masks of the operating regimes of one experiment (regimes may overlap)."""
     n = rec.t.size
     out: dict[str, np.ndarray] = {}
-    dp1 = np.gradient(sps.savgol_filter(rec.p1, min(31, n - (1 - n % 2)), 2), dt) \
-        if n > 31 else np.gradient(rec.p1, dt)
-    out["charging"] = dp1 > 2e4
-    out["discharging"] = dp1 < -2e4
-    if rec.locked:
+    # Chamber 1 charges while chamber 2 discharges (Remark 2): either pressure tells.
+    chamber = next((c for c in (1, 2) if rec.measured(f"p{c}")), None)
+    if chamber is not None:
+        p = rec.signal(f"p{chamber}")
+        dp = np.gradient(sps.savgol_filter(p, min(31, n - (1 - n % 2)), 2), dt) \
+            if n > 31 else np.gradient(p, dt)
+        dp1 = dp if chamber == 1 else -dp
+        out["charging"] = dp1 > 2e4
+        out["discharging"] = dp1 < -2e4
+    if rec.locked or not rec.measured("y"):
         return out
     speed = np.abs(rec.v)
     end = np.abs(rec.y) > 0.5 * stroke - END_STOP_MARGIN
@@ -101,7 +106,7 @@ def frequency_response(prepared: Prepared, preds: dict[str, Sequence[Prediction 
     weight = None
     f = None
     for i, rec in enumerate(prepared.records):
-        if rec.t.size < nperseg or np.std(rec.u) < 1e-6:
+        if rec.t.size < nperseg or np.std(rec.u) < 1e-6 or not rec.measured(signal):
             continue
         u = rec.u - rec.u.mean()
         f, p_uu = sps.welch(u, fs, nperseg=nperseg)
@@ -141,7 +146,7 @@ def position_error_pct(prepared: Prepared, preds: Sequence[Prediction | None],
     """The paper's position time-response error: RMS error over the stroke travelled [%]."""
     num, den, cnt = 0.0, 0.0, 0
     for rec, pred in zip(prepared.records, preds):
-        if pred is None or rec.locked:
+        if pred is None or rec.locked or not rec.measured("y"):
             continue
         m = pred.free & (getattr(rec, role) if role else True)
         if not np.any(m):

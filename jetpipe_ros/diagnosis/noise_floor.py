@@ -14,7 +14,8 @@ import dataclasses
 
 import numpy as np
 
-from jetpipe_ros.diagnosis.data import Prepared, smoothed, velocity
+from jetpipe_ros.diagnosis.data import SIGNALS, Prepared, smoothed, velocity
+from jetpipe_ros.diagnosis.prediction import initial_state
 from jetpipe_ros.diagnosis.score import predict_all, score, window_errors
 from jetpipe_ros.model import ModelParams, simulate
 
@@ -25,22 +26,22 @@ def twin(prepared: Prepared, params: ModelParams, seed: int = SEED) -> Prepared:
     """The dataset re-measured on the model ``params`` with the estimated sensor noise."""
     rng = np.random.default_rng(seed)
     records = []
+    dt = prepared.dt
     for rec in prepared.records:
         p = params.with_values({
             "mechanics.locked": rec.locked, "sensors.noise": False,
-            "integration.sample_time": prepared.dt,
-            "mechanics.initial_position": float(np.clip(rec.smooth["y"][0], -0.5, 0.5)),
-            "chamber.initial_pressure_1": float(np.clip(rec.smooth["p1"][0], 1e4, 1.2e6)),
-            "chamber.initial_pressure_2": float(np.clip(rec.smooth["p2"][0], 1e4, 1.2e6)),
+            "integration.sample_time": dt,
+            **initial_state(params, rec.smooth["y"], rec.smooth["p1"], rec.smooth["p2"]),
             "chamber.regulated": rec.regulated})
         tr = simulate(p, rec.u, rec.f_load)
-        y = tr.y + prepared.noise["y"] * rng.standard_normal(tr.y.size)
-        p1 = tr.p1 + prepared.noise["p1"] * rng.standard_normal(tr.y.size)
-        p2 = tr.p2 + prepared.noise["p2"] * rng.standard_normal(tr.y.size)
-        dt = prepared.dt
+        # The twin measures what the record measured, no more.
+        sig = {s: getattr(tr, s) + prepared.noise[s] * rng.standard_normal(tr.y.size)
+               if rec.measured(s) else np.full(tr.y.size, np.nan) for s in SIGNALS}
+        y = sig["y"]
+        moving = not rec.locked and rec.measured("y")
         records.append(dataclasses.replace(
-            rec, y=y, p1=p1, p2=p2, v=np.zeros_like(y) if rec.locked else velocity(y, dt),
-            smooth={"y": smoothed(y, dt), "p1": smoothed(p1, dt), "p2": smoothed(p2, dt)}))
+            rec, **sig, v=velocity(y, dt) if moving else np.zeros_like(y),
+            smooth={s: smoothed(x, dt) if rec.measured(s) else x for s, x in sig.items()}))
     return dataclasses.replace(prepared, records=records, floor={})
 
 

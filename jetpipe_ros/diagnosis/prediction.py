@@ -7,7 +7,9 @@ after a short warm-up during which the valve sees the recorded command while cha
 are held on the measurements (so the valve's own state is right at the restart). Measurements
 that set the state are smoothed (zero phase) first, so sensor noise does not enter the restarts,
 and pass back through the inverse of the model's own pressure-sensor model (bias, drift, lag) when
-the sensor_dynamics effect is on, so a restart does not hand the sensor's error to the state. Locked-piston
+the sensor_dynamics effect is on, so a restart does not hand the sensor's error to the state. A
+signal the record did not measure (NaN) is never driven: the model carries its own state through
+the restarts (a record of the position alone restarts the piston only). Locked-piston
 experiments are stable and are predicted whole. Friction tests on the regulated rig are
 predicted as the mechanics alone: their pressures are the regulators'.
 
@@ -73,6 +75,20 @@ def _sensor_inverse(params: ModelParams, p_meas: np.ndarray, t: np.ndarray,
     return p
 
 
+def initial_state(params: ModelParams, y: np.ndarray, p1: np.ndarray,
+                  p2: np.ndarray) -> dict[str, float]:
+    """The model's initial position and pressures taken from the first samples of the
+    (smoothed) measurements; a signal not measured (NaN) keeps the parameters' own value (the
+    pressures' default is the valve's null equilibrium), and the model carries it from there."""
+    out = {}
+    for key, x, low, high in (("mechanics.initial_position", y, -0.5, 0.5),
+                              ("chamber.initial_pressure_1", p1, 1e4, 1.2e6),
+                              ("chamber.initial_pressure_2", p2, 1e4, 1.2e6)):
+        if np.isfinite(x[0]):
+            out[key] = float(np.clip(x[0], low, high))
+    return out
+
+
 def predict(params: ModelParams, rec: Record, dt: float, mode: str = "full",
             horizon: float = HORIZON, warmup: float = WARMUP) -> Prediction:
     """Predict experiment ``rec`` with ``params`` (noise-free) at sample time ``dt``."""
@@ -84,10 +100,7 @@ def predict(params: ModelParams, rec: Record, dt: float, mode: str = "full",
     p1, p2 = (_sensor_inverse(params, rec.smooth[s], rec.t, i)
               for i, s in ((1, "p1"), (2, "p2")))
     changes = {"mechanics.locked": rec.locked, "sensors.noise": False,
-               "integration.sample_time": dt,
-               "mechanics.initial_position": float(np.clip(y[0], -0.5, 0.5)),
-               "chamber.initial_pressure_1": float(np.clip(p1[0], 1e4, 1.2e6)),
-               "chamber.initial_pressure_2": float(np.clip(p2[0], 1e4, 1.2e6))}
+               "integration.sample_time": dt, **initial_state(params, y, p1, p2)}
     act = Actuator(params.with_values(changes))
     n = rec.t.size
     drive = np.full((n - 1, kernel.N_DRIVE), np.nan)
@@ -118,3 +131,25 @@ def predict(params: ModelParams, rec: Record, dt: float, mode: str = "full",
     free[0] = False
     return Prediction(y=out[:, kernel.OUT_Y_MEAS], p1=out[:, kernel.OUT_P1_MEAS],
                       p2=out[:, kernel.OUT_P2_MEAS], free=free)
+
+
+def persistence(rec: Record, dt: float, horizon: float = HORIZON,
+                warmup: float = WARMUP) -> Prediction:
+    """The forecast that knows nothing of the actuator: each signal held, over every prediction
+    window, at its (smoothed) measured value where the model restarts (for a locked-piston
+    test, predicted whole, its first value). Scored like a model's prediction: a model no
+    better than this describes nothing of the hardware."""
+    n = rec.t.size
+    starts = np.zeros(n, dtype=int)
+    held = np.zeros(n, dtype=bool)
+    if not rec.locked:
+        held = windows(n, dt, horizon, warmup)
+        lead = held & ~np.concatenate([[False], held[:-1]])  # first warm-up sample of a window
+        starts = np.maximum.accumulate(np.where(lead, np.arange(n), 0))
+        ends = np.flatnonzero(held & ~np.concatenate([held[1:], [False]]))  # last warm-up
+        for end in ends:  # held at the restart value: the end of the warm-up
+            starts[starts == starts[end]] = end
+    free = ~held
+    free[0] = False
+    return Prediction(**{s: rec.smooth[s][starts] for s in ("y", "p1", "p2")}, free=free)
+

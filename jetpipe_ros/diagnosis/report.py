@@ -180,7 +180,10 @@ def summary(result: dict) -> str:
     cal = result["calibration"]
     lines = []
     off = ", ".join(cal["summary"]) or "all within 2 % of nominal"
-    if v["effect"] == "none":
+    if not v.get("model_fits", True):
+        lines.append(f"<b>The model does not describe this hardware.</b> "
+                     f"{html.escape(v['reason'])}. No effect is named.")
+    elif v["effect"] == "none":
         lines.append(f"<b>No unmodelled effect identified.</b> {html.escape(v['reason'])}.")
     elif v["effect"] == "unlisted":
         lines.append(f"<b>A gap beyond noise remains that no listed effect explains</b> "
@@ -427,9 +430,17 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
         _table(vis_rows, ["candidate", "gap at typical size [%]", "visible"]),
         "<h2>Data</h2>",
         f"<p>Split: {html.escape(data['split'])}. Sample time {data['sample_time_s'] * 1e3:g} "
-        f"ms. Estimated sensor noise: position {data['noise']['y'] * 1e6:.1f} um, pressures "
+        f"ms. Signals measured: {', '.join(data.get('sensors', ['y', 'p1', 'p2']))}. "
+        f"Estimated sensor noise: position {data['noise']['y'] * 1e6:.1f} um, pressures "
         f"{data['noise']['p1']:.0f} / {data['noise']['p2']:.0f} Pa.</p>",
         "".join(f"<p>Note: {html.escape(n)}.</p>" for n in data["notes"]),
+        "<h3>What the diagnosis corrected in the records</h3>",
+        "<ul>" + "".join(f"<li>{html.escape(c)}</li>" for c in data.get("corrections", []))
+        + f"<li>time base ({html.escape(data['time_base']['reading'])}): "
+          f"{html.escape(data['time_base']['explanation'])}</li></ul>"
+        if "time_base" in data else "",
+        "".join(f"<p>Not judged: <code>{html.escape(e)}</code>, {html.escape(why)}.</p>"
+                for e, why in data.get("cannot_judge", {}).items()),
         _table(exp_rows, ["experiment", "piston", "train [s]", "held out [s]"]),
         "</body></html>",
     ]

@@ -238,16 +238,21 @@ def equation_errors(prepared: Prepared, params: ModelParams,
     for rec in prepared.records:
         reg = regimes(rec, dt, stroke)
         everywhere = np.ones(rec.t.size, dtype=bool)
-        if not rec.regulated:
+        # An equation is asked only where the record measured every state it holds (a chamber's
+        # own pressure and the position; the force balance both pressures).
+        if not rec.regulated and rec.measured("y") and (rec.measured("p1")
+                                                        or rec.measured("p2")):
             e1, e2, q1, q2, g1, g2, u_eq = chamber_errors(params, rec, dt)
             p1, p2 = rec.smooth["p1"], rec.smooth["p2"]
             dp1, dp2 = _derivative(rec.p1, dt, 1), _derivative(rec.p2, dt, 1)
             for i, e, p, po, dp, q, g in ((1, e1, p1, p2, dp1, q1, g1),
                                           (2, e2, p2, p1, dp2, q2, g2)):
-                add(EQUATIONS[i - 1], e, _chamber_terms(i, p, po, dp, q, g, u_eq, rec.v,
-                                                        c.area, c.rt, c.p_supply), reg,
-                    everywhere)
-        if not rec.locked:
+                terms = _chamber_terms(i, p, po, dp, q, g, u_eq, rec.v, c.area, c.rt,
+                                       c.p_supply)
+                keep = np.isfinite(e) & np.all([np.isfinite(t.values) for t in terms], axis=0)
+                if rec.measured(f"p{i}") and keep.any():
+                    add(EQUATIONS[i - 1], e, terms, reg, keep & everywhere)
+        if not rec.locked and all(rec.measured(s) for s in ("y", "p1", "p2")):
             err, sliding, static, viscous = force_error(params, rec, dt)
             a = _derivative(rec.y, dt, 2)
             add("force balance", err, _force_terms(rec.smooth["y"], rec.v, a,

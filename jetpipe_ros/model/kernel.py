@@ -286,9 +286,13 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
                 x[V] = drive[k, DRIVE_V]
                 x[FRICTION] = 0.0
                 move = False
-            if math.isfinite(drive[k, DRIVE_P1]):
-                x[P1] = drive[k, DRIVE_P1]
-                x[P2] = drive[k, DRIVE_P2]
+            p1_given = math.isfinite(drive[k, DRIVE_P1])
+            p2_given = math.isfinite(drive[k, DRIVE_P2])
+            if p1_given or p2_given:
+                if p1_given:
+                    x[P1] = drive[k, DRIVE_P1]
+                if p2_given:
+                    x[P2] = drive[k, DRIVE_P2]
                 pressurise = False
         y, v, p1, p2 = x[Y], x[V], x[P1], x[P2]
         stuck, z, friction = x[STUCK], x[Z], x[FRICTION]
@@ -395,8 +399,8 @@ def advance(c: Constants, x: np.ndarray, ring: np.ndarray, u: np.ndarray, f_load
     normals for the sensors; ``out[k]`` receives the outputs at the end of sample k.
     ``drive`` is empty or (n, N_DRIVE): where row k holds finite values, sample k starts from
     the prescribed position [m] and velocity [m/s] (then moves at that velocity, friction not
-    computed) and/or holds the prescribed pressures [Pa]. Non-finite commands must be filtered
-    by the caller.
+    computed) and/or holds the prescribed pressures [Pa] (a pressure given as NaN beside a finite
+    one is held at its current value). Non-finite commands must be filtered by the caller.
 
     Each block of :data:`BLOCK` samples runs in two passes: the valve chain over all its
     sub-steps (:func:`_valve_pass`), then chambers and piston (:func:`_physics_pass`).

@@ -1,0 +1,241 @@
+"""Where the measurements sit in time relative to the command: a logger's convention, measured.
+
+The data contract pairs, on row k, the command u_k with the measurements taken at t_k, *before*
+u_k acts (a sampled loop reads its sensors, then computes and applies the command). Another
+common convention writes beside u_k the measurement taken *after* it acted: every measurement
+then sits a row early, and a model compared with it looks too slow (an extra valve lag or delay,
+a faster torque motor). This module measures the offset before anything is fitted, with two
+pieces of evidence that do not share their assumptions:
+
+- **The model's own delay** (open and closed loop). The valve cannot move the chambers or the
+  piston sooner than its transport delay (Eq. 10, 2 ms) and its dynamics allow. The nominal model
+  is fitted to the training records with one extra knob, a time offset of the measurements
+  (continuous, +-:data:`MAX_OFFSET` s), beside the calibration knobs that also shape how soon
+  the measurements answer (valve gain and natural frequency, flow gains, dead volumes);
+  locked-piston records are used when there are enough (their pressures answer the valve
+  directly), else all. No valve lag is fitted beside it: a lag at its vanishing corner (300 Hz)
+  still delays by 0.5 ms, which the offset would then pay back, and a real lag looks like a
+  delay of several ms anyway (which only the controller's reaction below sees through). A negative offset (the measurements answer sooner than the valve
+  allows) is a logging convention, not physics; a positive one is the same, in open loop, as an
+  extra valve delay (``valve_delay``): both readings fit.
+- **The controller's reaction** (closed loop). A controller reacts at once to the sensor noise
+  of the position it reads, while the plant cannot answer its command within the valve's delay.
+  The high-frequency part of the command (less its zero-phase smoothing) is regressed on that
+  of the position at row lags -1..3: the first lag at which the command follows the position's
+  noise beyond :data:`Z_CONTROLLER` standard errors is where the controller read it. At lag 0 the log
+  follows the contract; at lag 1 the measurements are a row early. This assumes the controller
+  uses its newest sample (the sampled loop of the contract); a controller that computes from
+  the previous sample looks like a log a row early, so when the model's delay disagrees the
+  model is believed for negative offsets (physics forbids them) and the disagreement is said.
+
+Corrections are by whole rows (:func:`data.prepare`'s ``shift_rows``); what remains of the
+estimate, under half a row, is left to the diagnosis like any other delay.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from jetpipe_ros.diagnosis.calibration import CALIBRATION, Calibration
+from jetpipe_ros.diagnosis.candidates import Knob, KnobGroup
+from jetpipe_ros.diagnosis.data import Prepared, smoothed
+from jetpipe_ros.diagnosis.fit import Fit, fit, uncertainty
+from jetpipe_ros.model import ModelParams
+
+#: Largest time offset searched either way [s] (a logger a few samples off at 1 kHz).
+MAX_OFFSET = 3e-3
+#: t statistic of the controller's reaction above which it is evidence (under no reaction
+#: about standard normal; 5 leaves room for the five lags tried and the residuals' colour).
+Z_CONTROLLER = 5.0
+#: Standard errors by which an offset must differ from zero before it is acted on.
+Z_OFFSET = 3.0
+#: Row lags of the controller test: the command following the position by -1..3 rows.
+LAGS = range(-1, 4)
+#: Least seconds of locked-piston training data for the offset fit to use those alone.
+MIN_LOCKED_S = 2.0
+#: Model evaluations of the offset fit.
+BUDGET = 60
+#: Knobs beside the offset that change how soon the measurements answer the command.
+NUISANCE = ("flow_gain_charge", "flow_gain_discharge", "valve_gain", "valve_frequency",
+            "dead_volume_1", "dead_volume_2")
+
+
+@dataclass(frozen=True)
+class _Offset(KnobGroup):
+    """The time offset as a knob: the valve's whole transport delay [s] on records whose
+    measurements were moved later by whole rows; offset = delay - ``zero``."""
+
+    zero: float = 0.0  #: the delay at which the offset is nil [s]
+
+    def apply(self, params: ModelParams, values: dict[str, float]) -> ModelParams:
+        return params.with_values({"valve.delay": max(values["delay"], 0.0)})
+
+
+@dataclass
+class Alignment:
+    """The measured offset of the measurements against the command and what was done."""
+
+    offset_s: float  #: model estimate: the measurements' stamps minus when they were taken [s]
+    stderr_s: float | None  #: its standard error [s]
+    controller_rows: int | None  #: closed loop: row lag at which the command follows y
+    controller_z: float  #: strength of that reaction [standard errors]
+    shift_rows: int  #: correction applied: measurements moved this many rows later
+    reading: str  #: aligned | logging convention | extra delay or logging | extra delay
+    words: str  #: the reading in a sentence
+    used: str  #: which records the model estimate used
+
+    def to_json(self, dt: float) -> dict:
+        """The ``data.time_offset`` section of diagnosis.json."""
+        return {"time_offset_s": self.offset_s, "stderr_s": self.stderr_s,
+                "corrected_rows": self.shift_rows, "corrected_s": -self.shift_rows * dt,
+                "remaining_s": self.offset_s + self.shift_rows * dt,
+                "controller_lag_rows": self.controller_rows,
+                "controller_z": self.controller_z, "reading": self.reading,
+                "explanation": self.words, "model_estimate_from": self.used}
+
+
+def controller_reaction(prepared: Prepared) -> tuple[int | None, float]:
+    """The first row lag (command after position) at which the command follows the position's
+    noise beyond :data:`Z_CONTROLLER`, and its t statistic; (None, largest |t|) when nothing
+    reacts (open loop, or no position noise).
+
+    The high-frequency parts (each signal less its zero-phase smoothing) of the command are
+    regressed on those of the position at every lag of :data:`LAGS` at once: the smoothing
+    spreads each noise sample over its neighbours, so a lag tested alone would borrow the
+    reaction of the next one."""
+    closed = [r for r in prepared.records if r.entry.extra.get("kind") == "closed_loop"]
+    records = closed or [r for r in prepared.records if not r.locked and not r.regulated]
+    width = max(LAGS) - min(LAGS)
+    rows_x, rows_u = [], []
+    for rec in records:
+        if not rec.measured("y") or np.std(rec.u) < 1e-9 or rec.t.size <= 2 * width:
+            continue
+        eu = rec.u - smoothed(rec.u, prepared.dt)
+        ey = rec.y - rec.smooth["y"]
+        ok = rec.train | rec.holdout
+        k = np.arange(max(LAGS), rec.t.size + min(LAGS))  # rows with every lag inside
+        cols = np.column_stack([ey[k - lag] for lag in LAGS])
+        keep = ok[k] & np.all([ok[k - lag] for lag in LAGS], axis=0)
+        rows_x.append(cols[keep])
+        rows_u.append(eu[k][keep])
+    if not rows_x or sum(len(u) for u in rows_u) <= 10 * len(LAGS):
+        return None, 0.0
+    x, u = np.concatenate(rows_x), np.concatenate(rows_u)
+    coef, *_ = np.linalg.lstsq(x, u, rcond=None)
+    resid = u - x @ coef
+    sigma2 = float(resid @ resid) / max(u.size - len(LAGS), 1)
+    cov = sigma2 * np.linalg.pinv(x.T @ x)
+    t = {lag: abs(float(c)) / np.sqrt(max(cov[i, i], 1e-300))
+         for i, (lag, c) in enumerate(zip(LAGS, coef))}
+    strong = [lag for lag in LAGS if t[lag] > Z_CONTROLLER]
+    if not strong:
+        return None, float(max(t.values()))
+    return strong[0], float(t[strong[0]])
+
+
+def _measured_later(prepared: Prepared, rows: int) -> Prepared:
+    """The records with each measurement moved ``rows`` rows later (beside a later command),
+    the first rows left without one (out of every comparison): every command is kept from the
+    start, so the valve sees the record's beginning as it was."""
+    if rows == 0:
+        return prepared
+
+    def later(x: np.ndarray) -> np.ndarray:
+        return np.concatenate([np.repeat(x[:1], rows), x[:x.size - rows]])
+
+    def none_first(m: np.ndarray) -> np.ndarray:
+        return np.concatenate([np.zeros(rows, dtype=bool), m[:m.size - rows]])
+
+    return dataclasses.replace(prepared, records=[dataclasses.replace(
+        r, **{s: later(getattr(r, s)) for s in ("y", "p1", "p2", "v")},
+        smooth={s: later(x) for s, x in r.smooth.items()},
+        train=none_first(r.train), holdout=none_first(r.holdout)) for r in prepared.records])
+
+
+def model_offset(prepared: Prepared, nominal: ModelParams) -> tuple[float, float | None, str]:
+    """The time offset of the measurements [s] that fits the nominal model best, its standard
+    error (marginal over the nuisance knobs), and which records were used. Searched over
+    +-max(:data:`MAX_OFFSET`, 1.5 samples) through the valve's transport delay, the
+    measurements moved later by whole rows where the delay alone cannot go that far below."""
+    locked = [r for r in prepared.records if r.locked and r.signals()]
+    use_locked = sum(float(r.train.sum()) for r in locked) * prepared.dt >= MIN_LOCKED_S
+    records = locked if use_locked else [r for r in prepared.records if r.signals()]
+    used = "locked-piston records" if use_locked else "all records"
+    dt = prepared.dt
+    reach = max(MAX_OFFSET, 1.5 * dt)
+    base = nominal["valve.delay"]
+    rows = max(0, int(np.ceil((reach - base) / dt - 1e-9)))
+    zero = base + rows * dt
+    data = _measured_later(dataclasses.replace(prepared, records=records), rows)
+    offset = _Offset("time_offset", (Knob("delay", zero - reach, zero + reach, zero),),
+                     zero=zero)
+    nuisance = Calibration("alignment", tuple(k for k in CALIBRATION.knobs
+                                              if k.name in NUISANCE))
+    groups: tuple[KnobGroup, ...] = (offset, nuisance)
+    fitted: Fit = fit(data, nominal, groups, None, BUDGET)
+    delay = fitted.values["time_offset"]["delay"]
+    se = uncertainty(data, nominal, fitted, groups)["time_offset"]["delay"]
+    return delay - zero, se, used
+
+
+def align(prepared: Prepared, nominal: ModelParams) -> Alignment:
+    """Measure the offset and decide the correction (see the module text)."""
+    dt = prepared.dt
+    offset, se, used = model_offset(prepared, nominal)
+    lag, z = controller_reaction(prepared)
+    sig = se if se is not None else dt
+    rows = int(np.round(offset / dt))
+    significant = abs(offset) > Z_OFFSET * sig and rows != 0
+    est = f"{offset * 1e3:+.2f} ms (+-{sig * 1e3:.2f})"
+    sooner = significant and rows < 0  # answers sooner than the valve allows: the logger
+    if lag:  # the controller reacts off the logged row: the logger, by the contract's loop
+        shift = max(lag, -rows) if sooner else lag
+        reading = "logging convention"
+        words = (f"the controller in the closed-loop records reacts to the position {abs(lag)} "
+                 f"row(s) {'after' if lag > 0 else 'before'} the row it is logged on, so the "
+                 f"logger writes its measurements {abs(lag)} row(s) "
+                 f"{'early' if lag > 0 else 'late'} (the model's delay says {est})")
+        if shift != lag:
+            words += (f"; the measurements answer sooner still than the valve allows, so "
+                      f"{shift} row(s)")
+        elif rows + lag > 0 and significant:
+            words += (f"; what remains, {(offset + lag * dt) * 1e3:.2f} ms, is an extra delay "
+                      f"of the actuator (or a controller that computes from its previous "
+                      f"sample: then the log was right and this is all delay)")
+        words += f"; corrected by moving them {abs(shift)} row(s) " \
+                 f"{'later' if shift > 0 else 'earlier'}"
+    elif sooner:
+        shift = -rows
+        reading = "logging convention"
+        words = (f"the measurements answer the command {-offset * 1e3:.2f} ms sooner than the "
+                 f"valve's delay allows ({est}): a logger that writes beside each command the "
+                 f"measurement taken after it acted, not physics; corrected by moving them "
+                 f"{shift} row(s) later")
+        if lag == 0:
+            words += ("; the closed-loop records' controller reacts on the same row, so it "
+                      "may read its measurement a sample late")
+    elif significant and rows > 0:
+        shift = 0
+        if lag == 0:
+            reading = "extra delay"
+            words = (f"the measurements answer {offset * 1e3:.2f} ms later than the nominal "
+                     f"model ({est}), and the closed-loop records show the log aligned (the "
+                     f"controller reacts on the same row): an extra delay of the actuator, "
+                     f"left to the diagnosis")
+        else:
+            reading = "extra delay or logging"
+            words = (f"the measurements answer {offset * 1e3:.2f} ms later than the nominal "
+                     f"model ({est}): either the actuator has an extra valve delay or the "
+                     f"logger writes its measurements late; these records cannot tell (a "
+                     f"closed-loop record would), so the record is diagnosed as logged and a "
+                     f"valve_delay verdict may be the logger's")
+    else:
+        shift = 0
+        reading = "aligned"
+        words = (f"the measurements sit where the contract puts them (offset {est}"
+                 + (", and the closed-loop controller reacts on the same row" if lag == 0
+                    else "") + ")")
+    return Alignment(offset, se, lag, z, shift, reading, words, used)
