@@ -1,0 +1,150 @@
+"""The time base of records from other loggers: lost rows filled, jitter snapped, irregular
+stamps resampled, other rates; what cannot be read still refused naming file, line and 't'."""
+
+import re
+
+import numpy as np
+import pytest
+
+from jetpipe_ros.dataset import DatasetError, read_dataset, read_experiment
+
+COLUMNS = ("t", "u", "y", "p1", "p2")
+
+
+def signals(t, seed=0):
+    """A command that changes every row (so a held value is recognisable) and smooth
+    measurements in the contract's units."""
+    rng = np.random.default_rng(seed)
+    return {"t": t, "u": np.round(rng.uniform(-2, 2, t.size), 4),
+            "y": 0.01 * np.sin(2 * np.pi * t), "p1": 3e5 + 1e5 * np.sin(2 * np.pi * 3 * t),
+            "p2": 3e5 - 1e5 * np.cos(2 * np.pi * 3 * t)}
+
+
+def write(path, cols):
+    names = list(cols)
+    rows = np.column_stack([cols[c] for c in names])
+    path.write_text(",".join(names) + "\n"
+                    + "\n".join(",".join(f"{v:.17g}" for v in r) for r in rows) + "\n")
+    return path
+
+
+def test_lost_rows_are_filled_held_interpolated_and_marked(tmp_path):
+    n, dt = 5000, 1e-3
+    full = signals(np.arange(n) * dt)
+    rng = np.random.default_rng(22)
+    lost = np.sort(rng.choice(np.arange(1, n - 1), size=n // 100, replace=False))  # 1 %
+    kept = np.setdiff1d(np.arange(n), lost)
+    root = tmp_path / "d"
+    root.mkdir()
+    write(root / "square.csv", {c: x[kept] for c, x in full.items()})
+    (root / "dataset.yaml").write_text("experiments:\n  - file: square.csv\n")
+    ds = read_dataset(root)
+    exp = ds.experiments[0]
+
+    np.testing.assert_allclose(exp.t, np.arange(n) * dt, rtol=0, atol=1e-12)  # the full grid
+    assert exp.valid.dtype == bool and exp.valid.sum() == kept.size
+    assert not exp.valid[lost].any()
+    before = kept[np.searchsorted(kept, lost) - 1]  # the last row kept before each lost one
+    np.testing.assert_array_equal(exp.u[lost], full["u"][before])  # zero-order hold
+    for c in ("u", "y", "p1", "p2"):
+        np.testing.assert_array_equal(getattr(exp, c)[kept], full[c][kept])
+    after = kept[np.searchsorted(kept, lost)]
+    w = (lost - before) / (after - before)
+    np.testing.assert_allclose(exp.y[lost], (1 - w) * full["y"][before] + w * full["y"][after],
+                               rtol=0, atol=1e-15)  # linear between the rows around the gap
+
+    runs = np.split(lost, np.flatnonzero(np.diff(lost) > 1) + 1)
+    longest = max(runs, key=len)
+    (note,) = exp.notes
+    m = re.fullmatch(r"(\d+) rows missing in (\d+) gaps \(longest (\d+) rows?, ([\d.]+) ms at "
+                     r"t = ([\d.]+) s\): command held, measurements interpolated and left out "
+                     r"of comparisons", note)
+    assert m, note
+    assert int(m[1]) == lost.size and int(m[2]) == len(runs)
+    assert int(m[3]) == len(longest) and float(m[4]) == pytest.approx(len(longest) * 1e3 * dt)
+    assert float(m[5]) == pytest.approx(longest[0] * dt, abs=5e-4)
+    assert ds.notes == [f"square.csv: {note}"]
+
+
+def test_jitter_is_snapped_to_the_grid_and_values_kept(tmp_path):
+    n, dt = 3000, 1e-3
+    k = np.arange(n)
+    jitter = np.random.default_rng(5).uniform(-0.3, 0.3, n) * dt
+    cols = signals(k * dt + jitter)
+    exp = read_experiment(write(tmp_path / "j.csv", cols))
+    np.testing.assert_allclose(exp.t, k * dt, rtol=0, atol=1e-12)
+    assert exp.valid is None
+    for c in ("u", "y", "p1", "p2"):
+        np.testing.assert_array_equal(getattr(exp, c), cols[c])
+    (note,) = exp.notes
+    m = re.fullmatch(r"time stamps jitter around a regular 1 ms grid \(RMS ([\d.]+) ms, max "
+                     r"([\d.]+) ms\): snapped to the grid", note)
+    assert m, note
+    assert float(m[1]) == pytest.approx(np.sqrt(np.mean(jitter ** 2)) * 1e3, rel=0.01)
+    assert float(m[2]) == pytest.approx(np.max(np.abs(jitter)) * 1e3, rel=0.01)
+
+
+def test_jitter_and_lost_rows_together_on_a_clock_off_its_nominal_rate(tmp_path):
+    """A clock 0.02 % slow drifts by 2 steps over 10 000 rows: slots are found by the fit, not
+    by the nominal (or median) step."""
+    n, dt = 10_000, 1.0002e-3
+    rng = np.random.default_rng(7)
+    kept = np.setdiff1d(np.arange(n), rng.choice(np.arange(1, n - 1), n // 100, replace=False))
+    cols = signals(5.0 + kept * dt + rng.uniform(-0.25, 0.25, kept.size) * dt)
+    exp = read_experiment(write(tmp_path / "d.csv", cols))
+    assert exp.t.size == n and exp.valid.sum() == kept.size
+    np.testing.assert_array_equal(np.flatnonzero(exp.valid), kept)
+    assert exp.dt == pytest.approx(dt, rel=1e-6)
+    assert "jitter" in exp.notes[0] and f"{n - kept.size} rows missing" in exp.notes[1]
+
+
+def test_irregular_stamps_are_resampled_onto_a_grid(tmp_path):
+    n, dt = 2000, 1e-3
+    rng = np.random.default_rng(3)
+    t = np.concatenate([[0.0], np.cumsum(rng.uniform(0.5, 1.5, n - 1) * dt)])
+    cols = {"t": t, "u": np.round(rng.uniform(-2, 2, n), 4), "y": 1e-3 + 2e-3 * t,
+            "p1": 2e5 + 1e5 * t, "p2": 4e5 - 1e5 * t}
+    exp = read_experiment(write(tmp_path / "r.csv", cols))
+    step = np.median(np.diff(t))
+    np.testing.assert_allclose(np.diff(exp.t), step, rtol=1e-9)
+    assert exp.t[0] == 0.0 and exp.t[-1] <= t[-1] < exp.t[-1] + step
+    assert exp.valid is None
+    np.testing.assert_allclose(exp.y, 1e-3 + 2e-3 * exp.t, rtol=0, atol=1e-9)  # still linear
+    np.testing.assert_allclose(exp.p1, 2e5 + 1e5 * exp.t, rtol=1e-12)
+    for i in rng.choice(exp.t.size, 100, replace=False):  # the command in force at each time
+        np.testing.assert_equal(exp.u[i], cols["u"][np.flatnonzero(t <= exp.t[i])[-1]])
+    (note,) = exp.notes
+    assert note.startswith("time stamps do not fit a regular grid (") and "resampled" in note
+    assert f"{exp.t.size} rows from {n}" in note
+
+
+def test_two_stamps_in_one_slot_are_resampled(tmp_path):
+    t = np.arange(1000) * 1e-3
+    t[500] = t[499] + 0.2e-3  # two rows in the slot of t = 0.499
+    cols = signals(np.sort(t))
+    exp = read_experiment(write(tmp_path / "s.csv", cols))
+    assert "two stamps in one 1 ms slot at t = 0.499 and 0.4992 s" in exp.notes[0]
+    np.testing.assert_allclose(np.diff(exp.t), 1e-3, rtol=1e-9)
+
+
+@pytest.mark.parametrize("rate", [200, 2000])
+def test_other_rates(tmp_path, rate):
+    n = 3 * rate
+    cols = signals(np.arange(n) / rate)
+    exp = read_experiment(write(tmp_path / "e.csv", cols))
+    assert exp.dt == pytest.approx(1.0 / rate, rel=1e-12)
+    np.testing.assert_allclose(exp.t, np.arange(n) / rate, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(exp.y, cols["y"])
+    assert exp.valid is None and exp.notes == []
+
+
+def test_what_cannot_be_read_is_refused(tmp_path):
+    t = np.arange(100) * 1e-3
+    t[60:] += 0.5  # 500 steps lost after 60 rows: more filled than measured
+    with pytest.raises(DatasetError, match=r"g.csv: line 62, column 't': 100 rows span 600 "
+                                           r"steps"):
+        read_experiment(write(tmp_path / "g.csv", signals(t)))
+    t = np.arange(100) * 1e-3
+    t[41] = t[40]
+    with pytest.raises(DatasetError, match=r"line 43, column 't': time is not strictly"):
+        read_experiment(write(tmp_path / "m.csv", signals(t)))
