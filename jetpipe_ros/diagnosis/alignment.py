@@ -22,7 +22,8 @@ pieces of evidence that do not share their assumptions:
   of the position it reads, while the plant cannot answer its command within the valve's delay.
   The high-frequency part of the command (less its zero-phase smoothing) is regressed on that
   of the position at row lags -1..3: the first lag at which the command follows the position's
-  noise beyond :data:`Z_CONTROLLER` standard errors is where the controller read it. At lag 0 the log
+  noise beyond :data:`Z_CONTROLLER` standard errors (and :data:`MINOR` of the strongest
+  reaction) is where the controller read it. At lag 0 the log
   follows the contract; at lag 1 the measurements are a row early. This assumes the controller
   uses its newest sample (the sampled loop of the contract); a controller that computes from
   the previous sample looks like a log a row early, so when the model's delay disagrees the
@@ -50,6 +51,8 @@ MAX_OFFSET = 3e-3
 #: t statistic of the controller's reaction above which it is evidence (under no reaction
 #: about standard normal; 5 leaves room for the five lags tried and the residuals' colour).
 Z_CONTROLLER = 5.0
+#: Fraction of the strongest reaction below which a lag's reaction is not the controller's.
+MINOR = 0.1
 #: Standard errors by which an offset must differ from zero before it is acted on.
 Z_OFFSET = 3.0
 #: Row lags of the controller test: the command following the position by -1..3 rows.
@@ -78,7 +81,8 @@ class _Offset(KnobGroup):
 class Alignment:
     """The measured offset of the measurements against the command and what was done."""
 
-    offset_s: float  #: model estimate: the measurements' stamps minus when they were taken [s]
+    offset_s: float  #: model estimate of the lag beyond the nominal valve's: the measurements'
+    #: stamps minus when the nominal model would have them [s] (logger and extra delay together)
     stderr_s: float | None  #: its standard error [s]
     controller_rows: int | None  #: closed loop: row lag at which the command follows y
     controller_z: float  #: strength of that reaction [standard errors]
@@ -87,10 +91,16 @@ class Alignment:
     words: str  #: the reading in a sentence
     used: str  #: which records the model estimate used
 
+    def logger_offset(self, dt: float) -> float:
+        """The offset attributed to the logger [s]: the measurements' stamps minus when they
+        were taken (negative: written a row early), i.e. the correction undone."""
+        return -self.shift_rows * dt
+
     def to_json(self, dt: float) -> dict:
-        """The ``data.time_offset`` section of diagnosis.json."""
-        return {"time_offset_s": self.offset_s, "stderr_s": self.stderr_s,
-                "corrected_rows": self.shift_rows, "corrected_s": -self.shift_rows * dt,
+        """The ``data.time_base`` section of diagnosis.json."""
+        return {"time_offset_s": self.logger_offset(dt), "stderr_s": self.stderr_s,
+                "corrected_rows": self.shift_rows,
+                "model_offset_s": self.offset_s,
                 "remaining_s": self.offset_s + self.shift_rows * dt,
                 "controller_lag_rows": self.controller_rows,
                 "controller_z": self.controller_z, "reading": self.reading,
@@ -130,7 +140,10 @@ def controller_reaction(prepared: Prepared) -> tuple[int | None, float]:
     cov = sigma2 * np.linalg.pinv(x.T @ x)
     t = {lag: abs(float(c)) / np.sqrt(max(cov[i, i], 1e-300))
          for i, (lag, c) in enumerate(zip(LAGS, coef))}
-    strong = [lag for lag in LAGS if t[lag] > Z_CONTROLLER]
+    # The first lag of a strong reaction: a derivative action reacts to two rows about
+    # equally, and the first is the one read; a small fraction of the largest reaction is not
+    # the controller's but what lost rows (held commands, interpolated positions) leave.
+    strong = [lag for lag in LAGS if t[lag] > max(Z_CONTROLLER, MINOR * max(t.values()))]
     if not strong:
         return None, float(max(t.values()))
     return strong[0], float(t[strong[0]])

@@ -55,21 +55,29 @@ def _fleet(args: argparse.Namespace, dirs, params) -> int:
     return 0 if fleet["failed"] == 0 else 1
 
 
-def campaign_dataset(params, root, seed: int) -> None:
-    """The default campaign (config/campaign.yaml) simulated offline with ``params``."""
+def campaign_dataset(params, root, seed: int, sample_time: float | None = None) -> None:
+    """The default campaign (config/campaign.yaml) simulated offline with ``params``, at the
+    plan's sample time or ``sample_time`` [s]."""
+    import dataclasses
+
     from jetpipe_ros.campaign import default_campaign, run_campaign_offline
 
-    run_campaign_offline(params, default_campaign(), root, seed=seed % 100000)
+    plan = default_campaign()
+    if sample_time is not None:
+        plan = dataclasses.replace(plan, sample_time=sample_time)
+    run_campaign_offline(params, plan, root, seed=seed % 100000)
 
 
 def _selfcheck(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from jetpipe_ros.diagnosis.selfcheck import run_selfcheck
+    from jetpipe_ros.diagnosis.selfcheck import Logged, run_selfcheck
     from jetpipe_ros.fileio import output_dir
 
     output_dir(args.out, "--out")  # before the work
-    summary = run_selfcheck(args.cases, args.seed, out_dir=Path(args.out), workers=args.jobs,
+    logged = Logged(None if args.logger == "none" else args.logger, args.rate)
+    summary = run_selfcheck(args.cases, args.seed, logged, out_dir=Path(args.out),
+                            workers=args.jobs,
                             deviate=args.deviations, source=args.truth,
                             scheduler=args.scheduler, restart=args.restart,
                             progress=lambda line: print(line, flush=True))  # also into a file
@@ -129,6 +137,13 @@ def add_command(subparsers) -> None:
     c.add_argument("--truth", choices=("plant", "model"), default="plant",
                    help="where the data come from: the plant written apart from the candidates "
                         "(default), or the simulator's own effects")
+    c.add_argument("--logger", choices=("none", "shifted", "lossy", "gauge_mm", "one_pressure",
+                                        "position_only"), default="none",
+                   help="rewrite each record as another data logger would (a row off, 1 %% of "
+                        "rows lost with jittered stamps, gauge bar and mm declared, one or no "
+                        "pressure sensor; default: none, the package's own convention)")
+    c.add_argument("--rate", type=float, default=1000.0,
+                   help="sample rate of the records [Hz] (default 1000)")
     c.add_argument("--deviations", action=argparse.BooleanOptionalAction, default=True,
                    help="move the nominal parameters of every case as an individual actuator "
                         "and bench would (default on; --no-deviations: the nominal model)")

@@ -449,7 +449,8 @@ def _data_json(prepared: Prepared, aligned: Alignment, unjudged: dict[str, str])
     """What the diagnosis read and corrected: the ``data`` section's additions."""
     lost = sum(int((~(r.train | r.holdout)).sum()) for r in prepared.records)
     return {"sensors": list(prepared.sensors), "corrections": prepared.corrections,
-            "time_offset_s": aligned.offset_s, "time_offset_stderr_s": aligned.stderr_s,
+            "time_offset_s": aligned.logger_offset(prepared.dt),
+            "time_offset_stderr_s": aligned.stderr_s,
             "time_base": aligned.to_json(prepared.dt), "cannot_judge": unjudged,
             "rows_not_compared": lost}
 

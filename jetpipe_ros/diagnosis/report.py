@@ -180,6 +180,10 @@ def summary(result: dict) -> str:
     cal = result["calibration"]
     lines = []
     off = ", ".join(cal["summary"]) or "all within 2 % of nominal"
+    base = result["data"].get("time_base")
+    if base and base["reading"] != "aligned":
+        lines.append(f"<b>Time base ({html.escape(base['reading'])}):</b> "
+                     f"{html.escape(base['explanation'])}.")
     if not v.get("model_fits", True):
         lines.append(f"<b>The model does not describe this hardware.</b> "
                      f"{html.escape(v['reason'])}. No effect is named.")

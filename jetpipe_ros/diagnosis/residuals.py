@@ -108,6 +108,14 @@ def _derivative(x: np.ndarray, dt: float, order: int) -> np.ndarray:
     return savgol_filter(x, n, 2, deriv=order, delta=dt)
 
 
+def _pressure_rate(rec: Record, chamber: int, dt: float) -> np.ndarray:
+    """The measured pressure rate of chamber 1 or 2 [Pa/s]; NaN where it was not measured."""
+    name = f"p{chamber}"
+    if not rec.measured(name):
+        return np.full(rec.t.size, np.nan)
+    return _derivative(rec.signal(name), dt, 1)
+
+
 def _equivalent_voltage(params: ModelParams, rec: Record, dt: float) -> np.ndarray:
     """The model's equivalent valve voltage u_eq [V] for the recorded command, sample by sample
     (the valve chain with its delay, lags and hysteresis; chambers and piston held on the
@@ -129,8 +137,7 @@ def chamber_errors(params: ModelParams, rec: Record, dt: float) -> tuple[np.ndar
     y = rec.smooth["y"] if not rec.locked else np.full(rec.t.size, rec.smooth["y"][0])
     v = rec.v
     p1, p2 = rec.smooth["p1"], rec.smooth["p2"]
-    dp1 = _derivative(rec.p1, dt, 1)
-    dp2 = _derivative(rec.p2, dt, 1)
+    dp1, dp2 = _pressure_rate(rec, 1, dt), _pressure_rate(rec, 2, dt)
     rates = kernel.chamber_rates(c, y, v, p1, p2, u_eq)
     vol1, vol2 = chamber_volumes(y, c.area, c.v01, c.v02)
     e1 = (dp1 - rates[0]) * vol1 / c.rt
@@ -244,9 +251,11 @@ def equation_errors(prepared: Prepared, params: ModelParams,
                                                         or rec.measured("p2")):
             e1, e2, q1, q2, g1, g2, u_eq = chamber_errors(params, rec, dt)
             p1, p2 = rec.smooth["p1"], rec.smooth["p2"]
-            dp1, dp2 = _derivative(rec.p1, dt, 1), _derivative(rec.p2, dt, 1)
+            dp1, dp2 = _pressure_rate(rec, 1, dt), _pressure_rate(rec, 2, dt)
             for i, e, p, po, dp, q, g in ((1, e1, p1, p2, dp1, q1, g1),
                                           (2, e2, p2, p1, dp2, q2, g2)):
+                if not rec.measured(f"p{3 - i}"):
+                    po = p  # the other chamber unmeasured: no leak across the piston to see
                 terms = _chamber_terms(i, p, po, dp, q, g, u_eq, rec.v, c.area, c.rt,
                                        c.p_supply)
                 keep = np.isfinite(e) & np.all([np.isfinite(t.values) for t in terms], axis=0)

@@ -57,6 +57,7 @@ from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError, simulate
 from jetpipe_ros.model.params import end_stop_volumes
 from jetpipe_ros.plant import REAL_EFFECTS, PlantSpec
 from jetpipe_ros.plant import simulate as simulate_plant
+from jetpipe_ros.plant.logger import log
 
 SOURCES = ("plant", "model")
 #: In ``OUT/cases/``: the run's configuration; in each ``caseNN/``: the scored case.
@@ -286,22 +287,47 @@ def signature(a: ModelParams | PlantSpec, b: ModelParams | PlantSpec,
         ta, tb = (simulate_plant(m.with_values(changes), exp.u) if isinstance(m, PlantSpec)
                   else simulate(m.with_values(changes), exp.u) for m in (a, b))
         for s in (("p1", "p2") if entry.locked else ("y", "p1", "p2")):
+            if getattr(exp, s) is None:  # not measured: cannot show there
+                continue
             d = getattr(ta, f"{s}_meas") - getattr(tb, f"{s}_meas")  # as the sensors read them
             sums[s] += float(np.sum((d / scale[s]) ** 2))
             counts[s] += d.size
     return 100.0 * float(np.sqrt(np.mean([sums[s] / counts[s] for s in sums if counts[s]])))
 
 
-def record(truth: ModelParams | PlantSpec, root: Path, seed: int) -> None:
-    """The default campaign recorded on ``truth`` (the plant or the model) into ``root``."""
+def record(truth: ModelParams | PlantSpec, root: Path, seed: int,
+           sample_time: float | None = None) -> None:
+    """The default campaign recorded on ``truth`` (the plant or the model) into ``root``, at
+    its own sample time or ``sample_time`` [s]."""
     if isinstance(truth, PlantSpec):
         from jetpipe_ros.plant import campaign_dataset as on_plant
 
-        on_plant(truth, root, seed)
+        on_plant(truth, root, seed, sample_time)
     else:
         from jetpipe_ros.diagnosis.cli import campaign_dataset as on_model
 
-        on_model(truth, root, seed)
+        on_model(truth, root, seed, sample_time)
+
+
+@dataclass(frozen=True)
+class Logged:
+    """A ``make_dataset`` for :func:`run_selfcheck`: the default campaign recorded on the truth
+    at ``rate`` [Hz], then rewritten as another data logger would have written it (``logger``,
+    one of :data:`jetpipe_ros.plant.logger.LOGGERS`: a row off, lost rows and jitter, declared
+    units, fewer sensors). The diagnosis must give the verdicts it gives on the clean record."""
+
+    logger: str | None = None
+    rate: float = 1000.0
+
+    def __call__(self, truth: ModelParams | PlantSpec, root: Path, seed: int) -> None:
+        record(truth, root, seed, 1.0 / self.rate)
+        if self.logger:
+            log(self.logger, root, seed + 1)
+
+    def describe(self) -> str:
+        """How the records were logged, in words."""
+        words = f"{self.rate:g} Hz"
+        return words + (f", logger '{self.logger}'" if self.logger else ", the package's logger")
 
 
 class SelfcheckError(ParameterError):
@@ -359,7 +385,8 @@ def _configuration(cases_dir: Path, config: dict, restart: bool) -> dict[int, Ca
         old = json.loads(stored.read_text())
         if old != config:
             flags = lambda c: (f"--cases {c['cases']} --seed {c['seed']} --truth {c['truth']} "  # noqa: E731
-                               f"--{'' if c['deviations'] else 'no-'}deviations")
+                               f"--{'' if c['deviations'] else 'no-'}deviations --logger "
+                               f"{c.get('logger') or 'none'} --rate {c.get('rate', 1000.0):g}")
             raise SelfcheckError(f"{cases_dir.parent}: holds a self-check run with "
                                  f"{flags(old)}, not {flags(config)}: give another --out, or "
                                  f"--restart to discard it")
@@ -381,7 +408,7 @@ def _duration(seconds: float) -> str:
 
 
 def run_selfcheck(n: int, seed: int,
-                  make_dataset: Callable[[ModelParams | PlantSpec, Path, int], None] = record,
+                  make_dataset: Callable[[ModelParams | PlantSpec, Path, int], None] = Logged(),
                   out_dir: Path | None = None, workers: int = 2,
                   progress: Callable[[str], None] = print, deviate: bool = True,
                   source: str = "plant", scheduler: str | None = None,
@@ -401,8 +428,10 @@ def run_selfcheck(n: int, seed: int,
     cases_dir = out_dir / "cases" if out_dir is not None else None
     done: dict[int, Case] = {}
     if cases_dir is not None:
-        done = _configuration(cases_dir, {"cases": n, "seed": seed, "truth": source,
-                                          "deviations": deviate}, restart)
+        config = {"cases": n, "seed": seed, "truth": source, "deviations": deviate}
+        if isinstance(make_dataset, Logged):
+            config.update(logger=make_dataset.logger, rate=make_dataset.rate)
+        done = _configuration(cases_dir, config, restart)
         if done:
             progress(f"resuming: {len(done)} of {n} cases already done in {cases_dir} "
                      f"(skipped: {', '.join(str(i) for i in sorted(done))})")
@@ -444,6 +473,8 @@ def run_selfcheck(n: int, seed: int,
                              f"{kept}")
     summary = summarise([done[c.index] for c in cases], time.perf_counter() - began)
     summary["resumed"] = n - len(todo)
+    if isinstance(make_dataset, Logged):
+        summary["logged"] = make_dataset.describe()
     summary["ran_on"] = str(cluster)
     if out_dir is not None:
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -559,8 +590,9 @@ def summarise(cases: list[Case], seconds: float) -> dict:
 def render(summary: dict) -> str:
     """The self-check as Markdown: headline figures, confusion matrix, parameter recovery."""
     dev = "with" if summary["deviations"] else "without"
+    logged = f", logged at {summary['logged']}" if summary.get("logged") else ""
     lines = [f"# jetpipe selfcheck: {summary['cases']} cases in {summary['seconds']:.0f} s, "
-             f"data from the {summary['source']}, {dev} parameter deviations", "",
+             f"data from the {summary['source']}, {dev} parameter deviations{logged}", "",
              f"- top-1 accuracy: {100 * summary['top1_accuracy']:.0f} % "
              f"({100 * summary['top1_interval'][0]:.0f}-{100 * summary['top1_interval'][1]:.0f} "
              f"%, {100 * summary['confidence_level']:.0f} % Wilson interval)"]

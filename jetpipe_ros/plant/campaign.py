@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 from jetpipe_ros.campaign import default_campaign, run_campaign_offline
@@ -10,13 +11,17 @@ from jetpipe_ros.plant.plant import Plant
 from jetpipe_ros.plant.spec import PlantSpec
 
 
-def campaign_dataset(spec: PlantSpec, root: str | Path, seed: int) -> Path:
+def campaign_dataset(spec: PlantSpec, root: str | Path, seed: int,
+                     sample_time: float | None = None) -> Path:
     """Write the default campaign (``config/campaign.yaml``) recorded on the plant ``spec`` to
     the dataset directory ``root``, as ``jetpipe_ros.diagnosis.cli.campaign_dataset`` does on
-    the model: sensor noise as ``spec.params`` says, seeded with ``seed % 100000``."""
+    the model: sensor noise as ``spec.params`` says, seeded with ``seed % 100000``, at the
+    plan's sample time or ``sample_time`` [s]."""
 
     def plant(params: ModelParams) -> Plant:
         return Plant(spec.with_params(params))
 
-    return run_campaign_offline(spec.params, default_campaign(), root, seed=seed % 100000,
-                                actuator=plant)
+    plan = default_campaign()
+    if sample_time is not None:
+        plan = dataclasses.replace(plan, sample_time=sample_time)
+    return run_campaign_offline(spec.params, plan, root, seed=seed % 100000, actuator=plant)

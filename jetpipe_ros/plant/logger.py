@@ -1,0 +1,120 @@
+"""Other data loggers: what the plant measured, written the way other benches log it.
+
+The plant's campaign is recorded in the package's own convention (row k: the command u_k beside
+the measurements taken at t_k, before u_k acts; 1 kHz; every sensor; SI units). Real benches log
+otherwise. Each logger here rewrites a recorded dataset directory as one of them would have:
+
+- ``shifted``: the other common pairing, u_k beside the measurements taken *after* u_k acted
+  (at t_k+1): every measurement column moves one row up, the last row is dropped;
+- ``lossy``: a logger on a non-real-time host: 1 % of the rows lost at random and every stamp
+  taken from a clock with jitter (uniform, +-0.3 of a sample);
+- ``gauge_mm``: pressures in bar gauge and the position in mm, declared in ``dataset.yaml``;
+- ``one_pressure``: a bench with one pressure sensor (chamber 1): column ``p2`` dropped;
+- ``position_only``: no pressure sensors: ``p1`` and ``p2`` dropped.
+
+This is the self-check's "real" logger: written apart from the reader that corrects these
+artefacts (:mod:`jetpipe_ros.dataset`, :mod:`jetpipe_ros.diagnosis.alignment`), with the csv
+module and its own ``dataset.yaml`` edit, so the check is not the reader against itself. Other
+sample rates are not a rewrite: the campaign is recorded at that rate (``rate``).
+"""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+#: Columns that hold measurements (what a logger pairs with the command).
+MEASURED = ("y", "p1", "p2", "v")
+P_ATM_LOGGER = 101325.0  #: the logger's idea of the atmosphere for gauge pressure [Pa]
+LOST_FRACTION = 0.01  #: rows a lossy logger loses
+JITTER = 0.3  #: a lossy logger's stamp jitter, half-width [samples]
+
+
+def _read(path: Path) -> tuple[list[str], np.ndarray]:
+    with path.open(newline="") as f:
+        rows = list(csv.reader(f))
+    return rows[0], np.array(rows[1:], dtype=float)
+
+
+def _write(path: Path, header: list[str], data: np.ndarray) -> None:
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        w.writerows([[repr(float(x)) for x in row] for row in data])
+
+
+def _files(root: Path) -> list[Path]:
+    doc = yaml.safe_load((root / "dataset.yaml").read_text())
+    return [root / e["file"] for e in doc["experiments"]]
+
+
+def shifted(root: Path, rng: np.random.Generator) -> None:
+    """Row k: the command u_k beside the measurements taken after it acted (row k+1's)."""
+    for path in _files(root):
+        header, data = _read(path)
+        cols = [header.index(c) for c in MEASURED if c in header]
+        out = data[:-1].copy()
+        out[:, cols] = data[1:, cols]
+        _write(path, header, out)
+
+
+def lossy(root: Path, rng: np.random.Generator) -> None:
+    """1 % of the rows (never the first or last) lost, the stamps jittered +-0.3 samples."""
+    for path in _files(root):
+        header, data = _read(path)
+        n = data.shape[0]
+        dt = float(np.median(np.diff(data[:, 0])))
+        lost = rng.choice(np.arange(1, n - 1), size=int(LOST_FRACTION * n), replace=False)
+        keep = np.setdiff1d(np.arange(n), lost)
+        out = data[keep].copy()
+        out[:, 0] += rng.uniform(-JITTER, JITTER, keep.size) * dt
+        _write(path, header, out)
+
+
+def gauge_mm(root: Path, rng: np.random.Generator) -> None:
+    """Pressures in bar gauge, the position in mm (and velocity in mm/s), declared."""
+    scale = {"y": (1e3, 0.0), "v": (1e3, 0.0), "p1": (1e-5, -P_ATM_LOGGER * 1e-5),
+             "p2": (1e-5, -P_ATM_LOGGER * 1e-5)}
+    for path in _files(root):
+        header, data = _read(path)
+        for c, (factor, offset) in scale.items():
+            if c in header:
+                i = header.index(c)
+                data[:, i] = data[:, i] * factor + offset
+        _write(path, header, data)
+    index = root / "dataset.yaml"
+    doc = yaml.safe_load(index.read_text())
+    doc["units"] = {"y": "mm", "v": "mm/s", "p1": "bar gauge", "p2": "bar gauge"}
+    index.write_text(yaml.safe_dump(doc, sort_keys=False))
+
+
+def _drop(columns: tuple[str, ...]) -> Callable[[Path, np.random.Generator], None]:
+    def drop(root: Path, rng: np.random.Generator) -> None:
+        for path in _files(root):
+            header, data = _read(path)
+            keep = [i for i, c in enumerate(header) if c not in columns]
+            _write(path, [header[i] for i in keep], data[:, keep])
+    return drop
+
+
+one_pressure = _drop(("p2",))
+position_only = _drop(("p1", "p2"))
+
+#: Logger name -> rewrite of a dataset directory in place.
+LOGGERS: dict[str, Callable[[Path, np.random.Generator], None]] = {
+    "shifted": shifted, "lossy": lossy, "gauge_mm": gauge_mm, "one_pressure": one_pressure,
+    "position_only": position_only,
+}
+#: Sensors each logger leaves (None: all three).
+SENSORS = {"one_pressure": ("y", "p1"), "position_only": ("y",)}
+
+
+def log(name: str, root: Path, seed: int) -> None:
+    """Rewrite the dataset at ``root`` as logger ``name`` would have written it."""
+    if name not in LOGGERS:
+        raise ValueError(f"unknown logger {name!r}: one of {', '.join(LOGGERS)}")
+    LOGGERS[name](Path(root), np.random.default_rng(seed))

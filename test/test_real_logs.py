@@ -1,0 +1,153 @@
+"""Records from other loggers and other hardware: the time base measured and corrected, lost rows
+and fewer sensors, and the verdict that the model does not describe a rig (issue: real logs).
+
+The loggers' artefacts are written here, apart from the code that corrects them."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from jetpipe_ros.campaign import default_campaign, run_campaign_offline
+from jetpipe_ros.dataset import read_dataset
+from jetpipe_ros.diagnosis import diagnose
+from jetpipe_ros.diagnosis.alignment import Z_OFFSET, align, controller_reaction
+from jetpipe_ros.diagnosis.data import prepare
+from jetpipe_ros.model import ModelParams, load_params
+
+from foreign_hardware import write_foreign_dataset, write_foreign_params
+
+DT = 1e-3
+#: A short campaign with locked, open-loop and closed-loop experiments, three held out.
+EXPERIMENTS = ("charge_2p86V", "valve_sweep_1V", "sweep_1p5V", "prbs_multilevel", "stick_slip",
+               "square_3V_0p97Hz", "sweep_0p8V", "stick_slip_holdout")
+MEASURED = ("y", "p1", "p2", "v")
+
+
+def record(root: Path, params: ModelParams, seed: int = 4) -> Path:
+    """The short campaign recorded on ``params`` with the paper's sensor noise."""
+    plan = default_campaign().select(EXPERIMENTS)
+    return run_campaign_offline(params.with_values({"sensors.noise": True}), plan, root,
+                                seed=seed)
+
+
+def csvs(root: Path) -> list[Path]:
+    doc = yaml.safe_load((root / "dataset.yaml").read_text())
+    return [root / e["file"] for e in doc["experiments"]]
+
+
+def relog(root: Path, rows: int = 0, lose: float = 0.0, jitter: float = 0.0,
+          drop: tuple[str, ...] = (), seed: int = 1) -> int:
+    """Rewrite every CSV as another logger: measurements ``rows`` rows early (> 0: row k holds
+    the command u_k beside what was measured at t_k+rows, after it acted; < 0: late), a
+    fraction ``lose`` of the rows lost, stamps jittered by +-``jitter`` samples, the columns
+    ``drop`` not logged. Returns how many rows were lost."""
+    rng = np.random.default_rng(seed)
+    lost_total = 0
+    for path in csvs(root):
+        header = path.read_text().splitlines()[0].split(",")
+        data = np.loadtxt(path, delimiter=",", skiprows=1)
+        meas = [header.index(c) for c in MEASURED if c in header]
+        if rows > 0:  # row j: the command of row j, the measurements of row j + rows
+            data, later = data[:-rows].copy(), data[rows:]
+            data[:, meas] = later[:, meas]
+        elif rows < 0:  # row j: the command of row j, the measurements of row j - |rows|
+            data, earlier = data[-rows:].copy(), data[:rows]
+            data[:, meas] = earlier[:, meas]
+        n = data.shape[0]
+        if lose:
+            lost = rng.choice(np.arange(1, n - 1), int(lose * n), replace=False)
+            data = np.delete(data, lost, axis=0)
+            lost_total += lost.size
+        data[:, 0] += rng.uniform(-jitter, jitter, data.shape[0]) * DT
+        keep = [i for i, c in enumerate(header) if c not in drop]
+        np.savetxt(path, data[:, keep], delimiter=",", header=",".join(header[i] for i in keep),
+                   comments="", fmt="%.17g")
+    return lost_total
+
+
+@pytest.fixture(scope="module")
+def nominal_record(tmp_path_factory):
+    return record(tmp_path_factory.mktemp("nominal") / "data", ModelParams())
+
+
+@pytest.mark.parametrize("rows", [0, 1, 2, -1])
+def test_an_offset_of_whole_rows_is_measured_and_read(nominal_record, tmp_path, rows):
+    """Measurements k rows early read as -k ms by the model's delay (within 0.2 ms) and as a
+    reaction k rows late by the closed loop's controller; early ones are a logging convention
+    and corrected, whatever the sign of the controller's evidence."""
+    import shutil
+
+    root = Path(shutil.copytree(nominal_record, tmp_path / "data"))
+    relog(root, rows=rows)
+    prepared = prepare(read_dataset(root))
+    lag, z = controller_reaction(prepared)
+    assert lag == rows and z > 5.0
+    aligned = align(prepared, ModelParams())
+    assert aligned.offset_s == pytest.approx(-rows * DT, abs=2e-4)
+    # small enough that a one-row offset stands out by Z_OFFSET (3) standard errors
+    assert aligned.stderr_s is not None and aligned.stderr_s < DT / Z_OFFSET
+    assert aligned.shift_rows == rows
+    assert aligned.logger_offset(DT) == pytest.approx(-rows * DT)
+    assert aligned.reading == ("aligned" if rows == 0 else "logging convention")
+
+
+def test_an_open_loop_record_late_by_a_row_is_ambiguous_with_a_valve_delay(nominal_record,
+                                                                           tmp_path):
+    """Without a closed loop, measurements a row late look like a 1 ms valve delay: both
+    readings are said, nothing is corrected."""
+    import shutil
+
+    root = Path(shutil.copytree(nominal_record, tmp_path / "data"))
+    index = root / "dataset.yaml"
+    doc = yaml.safe_load(index.read_text())
+    doc["experiments"] = [e for e in doc["experiments"] if e["kind"] != "closed_loop"]
+    index.write_text(yaml.safe_dump(doc))
+    relog(root, rows=-1)
+    aligned = align(prepare(read_dataset(root)), ModelParams())
+    assert aligned.offset_s == pytest.approx(DT, abs=2e-4)
+    assert aligned.controller_rows is None
+    assert aligned.shift_rows == 0 and aligned.reading == "extra delay or logging"
+    assert "valve delay" in aligned.words and "cannot tell" in aligned.words
+
+
+def test_a_lagging_valve_logged_a_row_early_with_lost_rows_and_jitter(tmp_path):
+    """The verdict of the aligned record (valve_lag near its 20 Hz), the logger's -1 ms reported
+    within 0.2 ms, and every lost row counted and left out of the comparison."""
+    root = record(tmp_path / "data", ModelParams().with_effect("valve_lag",
+                                                                corner_frequency=20.0))
+    lost = relog(root, rows=1, lose=0.01, jitter=0.3)
+    result = diagnose(root, tmp_path / "out", workers=1, quiet=True)
+    v, data = result["verdict"], result["data"]
+    assert v["effect"] == "valve_lag" and v["model_fits"]
+    assert v["params"]["corner_frequency"] == pytest.approx(20.0, rel=0.15)
+    assert data["time_offset_s"] == pytest.approx(-DT, abs=2e-4)
+    assert data["time_base"]["reading"] == "logging convention"
+    # the lag makes the measurements look late to the model's delay (its estimate lies beyond
+    # the row the logger wrote early); the controller's reaction is what sees the logger
+    assert data["time_base"]["model_offset_s"] > 0.0
+    assert data["time_base"]["controller_lag_rows"] == 1
+    assert data["rows_not_compared"] == lost
+    notes = " ".join(data["corrections"])
+    assert "jitter" in notes and "rows missing" in notes
+    report = (tmp_path / "out" / "report.html").read_text()
+    assert "Time base (logging convention)" in report
+
+
+def test_hardware_outside_the_model_class_names_no_effect(tmp_path):
+    """A spring-return cylinder on two on/off valves with one pressure sensor (another rig
+    entirely): no candidate can be the answer, and the verdict says the model does not fit."""
+    root = write_foreign_dataset(tmp_path / "data")
+    params = load_params(write_foreign_params(tmp_path / "params.yaml"))
+    result = diagnose(root, tmp_path / "out", params, workers=1, quiet=True)
+    v = result["verdict"]
+    assert v["model_fits"] is False
+    assert v["effects"] == [] and v["params"] == {}
+    assert "does not describe this hardware" in v["reason"]
+    assert result["gap"]["augmented"] >= result["gap"]["persistence"]
+    assert result["data"]["sensors"] == ["y", "p1"]
+    assert "sensor_dynamics" not in result["data"]["cannot_judge"]
+    saved = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
+    assert saved["verdict"]["model_fits"] is False
