@@ -151,3 +151,21 @@ def test_hardware_outside_the_model_class_names_no_effect(tmp_path):
     assert "sensor_dynamics" not in result["data"]["cannot_judge"]
     saved = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
     assert saved["verdict"]["model_fits"] is False
+
+
+def test_a_valve_delay_seen_by_the_position_alone(tmp_path):
+    """No pressure sensor: the locked tests have nothing to explain and are left out, the
+    pressure sensor's candidate is not judged, and the 4 ms delay is still found from the
+    piston's motion (not a lag, not a delay beside a spurious mass: the recalibration, which
+    the position alone cannot pin, is not kept)."""
+    root = record(tmp_path / "data", ModelParams().with_effect("valve_delay", delay=0.004))
+    relog(root, drop=("p1", "p2"))
+    result = diagnose(root, tmp_path / "out", workers=1, quiet=True)
+    v, data = result["verdict"], result["data"]
+    assert data["sensors"] == ["y"]
+    assert "sensor_dynamics" in data["cannot_judge"]
+    assert {e["name"] for e in data["experiments"]}.isdisjoint({"charge_2p86V",
+                                                                 "valve_sweep_1V"})
+    assert v["effect"] == "valve_delay" and v["model_fits"]
+    assert v["params"]["delay"] == pytest.approx(0.004, rel=0.1)
+    assert result["gap"]["shrinkage"] >= 0.8

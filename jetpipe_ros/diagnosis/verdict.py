@@ -320,7 +320,9 @@ def settle(calibration: Ranked, on_cal: Verdict, alone: Verdict, given: Ranked |
 
     - an effect that explains the gap left after recalibration is the answer; the calibration
       stays in the model when it explains a significant part of what the effect alone leaves,
-      else the effect alone is kept (its mis-set parameters were not needed);
+      else the effect alone is kept (its mis-set parameters were not needed), unless the
+      recalibration explains nothing alone either and the winner on the nominal model predicts
+      the holdout better than that effect alone: then that winner is the answer;
     - with no such effect, a significant recalibration is kept; if an effect alone explains the
       nominal gap too, the two are alternatives: the one with the lower held-out information
       criterion is kept, the other reported;
@@ -336,6 +338,25 @@ def settle(calibration: Ranked, on_cal: Verdict, alone: Verdict, given: Ranked |
                       f"top of the recalibration, {on_cal.reason}; the recalibration removes "
                       f"{given.shrinkage:.0%} of what {win.fit.name} alone leaves")
             return Settled(win.fit, True, on_cal, reason, given)
+        best = alone.winner
+        if not calibration.explains and best is not None and best.fit.name != win.fit.name:
+            # Neither the recalibration nor its help beside the effect pays for itself: the
+            # ranking on top of it was made beside knobs the data do not pin (a record of the
+            # position alone leaves the dead volumes and flow gains free to overfit). The
+            # ranking on the nominal model decides when its winner predicts the holdout better,
+            # or when it is one member of the pair that won and the other, without the knobs,
+            # removes less than MIN_SHRINKAGE of what it leaves (a second effect by the rule
+            # of decide(), judged without the knobs).
+            member = set(best.fit.effect_names) < set(win.fit.effect_names)
+            rest = 1.0 - effect_alone.fit.holdout.gap / max(best.fit.holdout.gap, 1e-12)
+            if best.fit.holdout.gap < effect_alone.fit.holdout.gap or (
+                    member and rest < MIN_SHRINKAGE):
+                reason = alone.reason
+                if member:
+                    reason += (f"; without the recalibration (not significant), "
+                               f"{win.fit.name} leaves only {rest:.0%} less than "
+                               f"{best.fit.name} alone")
+                return Settled(best.fit, False, alone, reason)
         verdict = Verdict(effect_alone, on_cal.confidence, on_cal.reason, on_cal.runner_up,
                           on_cal.ambiguous)
         reason = (f"{win.fit.name} explains the gap: alone it removes "
