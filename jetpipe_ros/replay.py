@@ -15,7 +15,7 @@ def replay(params: ModelParams, exp: Experiment, locked: bool = False) -> Trace:
     """Simulate ``exp``'s command (and load, if recorded) at the experiment's own sample time."""
     changes: dict[str, object] = {}
     if not math.isclose(exp.dt, params["integration.sample_time"], rel_tol=1e-6):
-        changes["integration.sample_time"] = exp.dt
+        params = params.at_sample_time(exp.dt)
     if locked:
         changes["mechanics.locked"] = True
     if changes:

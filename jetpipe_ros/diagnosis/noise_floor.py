@@ -28,9 +28,8 @@ def twin(prepared: Prepared, params: ModelParams, seed: int = SEED) -> Prepared:
     records = []
     dt = prepared.dt
     for rec in prepared.records:
-        p = params.with_values({
+        p = params.at_sample_time(dt).with_values({
             "mechanics.locked": rec.locked, "sensors.noise": False,
-            "integration.sample_time": dt,
             **initial_state(params, rec.smooth["y"], rec.smooth["p1"], rec.smooth["p2"]),
             "chamber.regulated": rec.regulated})
         tr = simulate(p, rec.u, rec.f_load)

@@ -100,8 +100,8 @@ def predict(params: ModelParams, rec: Record, dt: float, mode: str = "full",
     p1, p2 = (_sensor_inverse(params, rec.smooth[s], rec.t, i)
               for i, s in ((1, "p1"), (2, "p2")))
     changes = {"mechanics.locked": rec.locked, "sensors.noise": False,
-               "integration.sample_time": dt, **initial_state(params, y, p1, p2)}
-    act = Actuator(params.with_values(changes))
+               **initial_state(params, y, p1, p2)}
+    act = Actuator(params.at_sample_time(dt).with_values(changes))
     n = rec.t.size
     drive = np.full((n - 1, kernel.N_DRIVE), np.nan)
     held = np.zeros(n, dtype=bool)

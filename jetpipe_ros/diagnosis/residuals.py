@@ -120,8 +120,8 @@ def _equivalent_voltage(params: ModelParams, rec: Record, dt: float) -> np.ndarr
     """The model's equivalent valve voltage u_eq [V] for the recorded command, sample by sample
     (the valve chain with its delay, lags and hysteresis; chambers and piston held on the
     measurements, which the chain does not depend on)."""
-    act = Actuator(params.with_values({"mechanics.locked": rec.locked, "sensors.noise": False,
-                                       "integration.sample_time": dt}))
+    act = Actuator(params.at_sample_time(dt).with_values({"mechanics.locked": rec.locked,
+                                                          "sensors.noise": False}))
     n = rec.t.size
     drive = np.column_stack([rec.smooth["y"], rec.v, rec.smooth["p1"], rec.smooth["p2"]])
     out = act.run(rec.u, rec.f_load, drive)

@@ -100,7 +100,7 @@ def presliding_experiment(params: ModelParams, dt: float) -> ExperimentSpec | No
     deflection, one with a lower breakaway force not at all: the test that tells the two apart,
     which the default campaign lacks. None when no amplitude of 1 mV already keeps the piston
     stuck (nothing below breakaway to probe)."""
-    quiet = params.with_values({"sensors.noise": False, "integration.sample_time": dt})
+    quiet = params.at_sample_time(dt).with_values({"sensors.noise": False})
     low, high = 1e-3, 1.0
     if not _stays_stuck(quiet, low, dt):
         return None
@@ -133,10 +133,9 @@ def separating_experiment(a: ModelParams, b: ModelParams, prepared: Prepared) ->
         specs.append((designed, True))
     for exp, is_designed in specs:
         u = exp.command(prepared.dt).voltage
-        changes = {"mechanics.locked": exp.locked, "sensors.noise": False,
-                   "integration.sample_time": prepared.dt}
-        ta = simulate(a.with_values(changes), u, exp.load_force)
-        tb = simulate(b.with_values(changes), u, exp.load_force)
+        changes = {"mechanics.locked": exp.locked, "sensors.noise": False}
+        ta = simulate(a.at_sample_time(prepared.dt).with_values(changes), u, exp.load_force)
+        tb = simulate(b.at_sample_time(prepared.dt).with_values(changes), u, exp.load_force)
         signals = ("p1", "p2") if exp.locked else SIGNALS
         d = np.mean([np.mean(((getattr(ta, f"{s}_meas") - getattr(tb, f"{s}_meas")) /
                               noise[s]) ** 2) for s in signals])

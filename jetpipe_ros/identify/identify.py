@@ -128,11 +128,11 @@ def check(rec: Recording, params: dict[str, ModelParams]) -> Replay:
     sims, rms_y, rms_p = {}, {}, {}
     for label, p in params.items():
         if rec.kind == kinds.FRICTION:
-            rig = p.with_values({"chamber.regulated": True,
-                                 "chamber.initial_pressure_1": float(np.mean(exp.p1)),
-                                 "chamber.initial_pressure_2": float(np.mean(exp.p2)),
-                                 "mechanics.initial_position": float(np.median(exp.y[:20])),
-                                 "integration.sample_time": exp.dt})
+            rig = p.at_sample_time(exp.dt).with_values({
+                "chamber.regulated": True,
+                "chamber.initial_pressure_1": float(np.mean(exp.p1)),
+                "chamber.initial_pressure_2": float(np.mean(exp.p2)),
+                "mechanics.initial_position": float(np.median(exp.y[:20]))})
             load = exp.f_load if exp.f_load is not None else rec.entry.load_force
             trace = simulate(rig, exp.u, load)
         else:

@@ -338,6 +338,14 @@ class ModelParams(Mapping[str, Any]):
         copy._set(changes, "")
         return copy
 
+    def at_sample_time(self, dt: float) -> ModelParams:
+        """A copy that outputs a sample every ``dt`` [s] with sub-steps no longer than this
+        set's own (``integration.sample_time / integration.substeps``), so a record logged at
+        another rate is simulated with the accuracy of the model's own rate."""
+        step = self["integration.sample_time"] / self["integration.substeps"]
+        return self.with_values({"integration.sample_time": dt,
+                                 "integration.substeps": max(1, math.ceil(dt / step - 1e-9))})
+
     def with_effect(self, effect: str, **params: float) -> ModelParams:
         """A copy with ``effect`` switched on and its parameters set."""
         effect_param_names(effect)
