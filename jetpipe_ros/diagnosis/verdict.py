@@ -339,11 +339,13 @@ def settle(calibration: Ranked, on_cal: Verdict, alone: Verdict, given: Ranked |
                       f"{given.shrinkage:.0%} of what {win.fit.name} alone leaves")
             return Settled(win.fit, True, on_cal, reason, given)
         best = alone.winner
-        if not calibration.explains and best is not None and best.fit.name != win.fit.name:
+        if (not calibration.explains and best is not None
+                and set(best.fit.effect_names) != set(win.fit.effect_names)):
             # Neither the recalibration nor its help beside the effect pays for itself: the
             # ranking on top of it was made beside knobs the data do not pin (a record of the
             # position alone leaves the dead volumes and flow gains free to overfit). The
-            # ranking on the nominal model decides when its winner predicts the holdout better,
+            # ranking on the nominal model decides when its winner, another effect (forms of
+            # one effect are judged as before), predicts the holdout better,
             # or when it is one member of the pair that won and the other, without the knobs,
             # removes less than MIN_SHRINKAGE of what it leaves (a second effect by the rule
             # of decide(), judged without the knobs).
