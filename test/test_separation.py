@@ -12,7 +12,7 @@ from jetpipe_ros.model.actuator import build_constants
 from jetpipe_ros.model.friction import friction_parameters
 
 DT = 1e-3
-AREA = 0.005433  # piston area S [m^2], DESIGN.md s.2
+AREA = 0.005433  # piston area S [m^2], docs/model.md
 
 
 def _run(params, spec):
@@ -34,7 +34,7 @@ def test_the_presliding_test_stays_just_below_breakaway():
         DT, spec.duration, a, spec.voltage.args["frequency"]))
     assert np.ptp(triangle(1.05 * critical).y) > 1e-6
     # Independently: at the critical amplitude the pneumatic force peaks at the breakaway force
-    # of Eq. 15 at those pressures (the friction planes, DESIGN.md s.2).
+    # of Eq. 15 at those pressures (the friction planes, docs/model.md).
     stuck = triangle(critical)
     force = AREA * (stuck.p1 - stuck.p2)
     k = int(np.argmax(np.abs(force)))
