@@ -8,7 +8,7 @@ PACKAGE = "jetpipe_ros"
 
 setup(
     name=PACKAGE,
-    version="0.1.0",
+    version="0.2.0",
     packages=find_packages(exclude=["test", "test.*", "docs", "docs.*"]),
     package_data={"jetpipe_ros.diagnosis": ["diagnosis.schema.json"]},
     data_files=[
