@@ -3,10 +3,11 @@ as a pip-only dependency), one version everywhere, the license text, the changel
 
 import ast
 import re
-import subprocess
 import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
+
+import pytest
 
 from jetpipe_ros import __version__
 
@@ -77,13 +78,15 @@ def test_every_third_party_import_is_declared_for_rosdep_or_named_as_pip_only():
             assert f"`{module}`" in install and module in readme, module
 
 
-def test_one_version_everywhere_and_the_changelog_names_it():
+def test_one_version_everywhere_and_the_changelog_names_it(capsys):
+    from jetpipe_ros.cli import main
+
     xml = ET.parse(REPO / "package.xml").getroot().findtext("version")
     setup = re.search(r'version="([^"]+)"', (REPO / "setup.py").read_text()).group(1)
-    cli = subprocess.run([sys.executable, "-m", "jetpipe_ros.cli", "--version"],
-                         capture_output=True, text=True, cwd=REPO)
     assert xml == setup == __version__
-    assert cli.returncode == 0 and cli.stdout.split() == ["jetpipe", xml]
+    with pytest.raises(SystemExit) as stop:
+        main(["--version"])
+    assert stop.value.code == 0 and capsys.readouterr().out.split() == ["jetpipe", xml]
     changelog = (REPO / "CHANGELOG.rst").read_text().splitlines()
     assert changelog[1] == "Changelog for package jetpipe_ros"
     heading = next(i for i, line in enumerate(changelog) if re.match(r"\d+\.\d+\.\d+ \(", line))
