@@ -8,8 +8,9 @@ PACKAGE = "jetpipe_ros"
 
 setup(
     name=PACKAGE,
-    version="0.1.0",
-    packages=find_packages(exclude=["test", "test.*"]),
+    version="0.2.0",
+    packages=find_packages(exclude=["test", "test.*", "docs", "docs.*"]),
+    package_data={"jetpipe_ros.diagnosis": ["diagnosis.schema.json"]},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),

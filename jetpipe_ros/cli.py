@@ -15,6 +15,7 @@ import importlib
 import sys
 from collections.abc import Sequence
 
+from jetpipe_ros import __version__
 from jetpipe_ros.dataset import DatasetError
 from jetpipe_ros.fileio import FileError
 from jetpipe_ros.model import ParameterError
@@ -32,6 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser with one sub-command per tool."""
     parser = argparse.ArgumentParser(
         prog="jetpipe", description="Jet-pipe servo actuator: simulation and sim-to-real tools.")
+    parser.add_argument("--version", action="version", version=f"jetpipe {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for module in COMMANDS:
         importlib.import_module(module).add_command(sub)

@@ -4,7 +4,7 @@ Steps, in order (each a function below, so a later step is a small addition to :
 
 1. the valve figures of the nominal model beside the paper's;
 2. start ``actuator_sim`` as the stand-in for real hardware: the nominal model with one
-   unmodelled effect of DESIGN.md s.3 switched on (a 20 Hz valve lag) and sensor noise, in
+   unmodelled effect of docs/effects.md switched on (a 20 Hz valve lag) and sensor noise, in
    simulated time, lock-step; and the ``controller``;
 3. run the default campaign (``config/campaign.yaml``) with ``id_recorder`` into an MCAP bag;
 4. export the bag to a dataset (``jetpipe export``);
@@ -66,7 +66,7 @@ def valve_figures(params: ModelParams) -> dict[str, float]:
 def print_valve_figures() -> None:
     """Step 1: the nominal valve chain beside the paper's measurements."""
     fig = valve_figures(ModelParams())
-    print("Valve chain (DESIGN.md s.2)    model     paper (measured)")
+    print("Valve chain (docs/model.md)    model     paper (measured)")
     print(f"  gain peak                 {fig['peak_hz']:6.1f} Hz  ~49 Hz")
     print(f"  overshoot                 {fig['overshoot'] * 100:6.1f} %")
     print(f"  rise 10-90 %              {fig['rise_s'] * 1e3:6.1f} ms   6 ms")
@@ -231,7 +231,7 @@ def main(argv: list[str] | None = None) -> int:
 
     print(f"\nResults in {out}")
     print(f"  bag (rosbag2, MCAP, metadata v9): {out / 'bag'}")
-    print(f"  dataset (DESIGN.md s.5):          {dataset}")
+    print(f"  dataset (docs/data.md):           {dataset}")
     print(f"  plot:                             {plot}")
     print(f"  diagnosis report:                 {out / 'diagnosis' / 'report.html'}")
     print(f"  improved model (loads in the sim): {out / 'diagnosis' / 'augmented.yaml'}")

@@ -37,7 +37,7 @@ def test_discharging_chamber_stops_at_atmosphere():
 
 
 def test_free_piston_at_zero_command_stays_at_rest():
-    """Both chambers at the null of q(0, p) (DESIGN.md: 4.1648 bar): no flow, no force."""
+    """Both chambers at the null of q(0, p) (docs/model.md: 4.1648 bar): no flow, no force."""
     trace = simulate(P, np.zeros(5000))
     assert np.all(trace.y == 0.0) and np.all(trace.v == 0.0)
     assert trace.p1[-1] == pytest.approx(null_pressure(0.0), abs=50)

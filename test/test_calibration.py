@@ -48,7 +48,7 @@ def test_each_knob_moves_its_own_physics():
 
 
 def test_valve_frequency_scales_the_resonance():
-    # The nominal chain peaks at 49.7 Hz (DESIGN.md s.2); a factor f moves the torque motor's
+    # The nominal chain peaks at 49.7 Hz (docs/model.md); a factor f moves the torque motor's
     # natural frequency by f, and with it the peak (the lead-lag shifts it by a little).
     for f in (0.9, 1.1):
         p = CALIBRATION.apply(NOMINAL, {"valve_frequency": f})

@@ -47,10 +47,12 @@ def _build(log, truth, root, seed):
 
 
 def test_selfcheck_cases_run_on_the_cluster_and_resume(tmp_path, monkeypatch, scheduler):
-    """Three model truths, none, a valve lag and a valve delay (the cases of seed 2), on the
-    cluster: the lag's case is interrupted, the run resumed; then the scoring of all three
-    (withheld truths found, `none` scored as specified, the lag's corner frequency and the
-    delay recovered, nothing leaked)."""
+    """The self-check's machinery on a cluster: three cases (the model truths of seed 2: none,
+    a valve lag, a valve delay) spread over the workers, the lag's case interrupted, the run
+    resumed, then all three scored (results, confusion, recovery, intervals, report). The truths
+    are the candidates' own forms, so this checks the plumbing, not the detection: detection on
+    truths of other forms is test_selfcheck's plant case; that the datasets carry no truth is
+    test_selfcheck_datasets_are_the_default_campaign."""
     monkeypatch.setitem(selfcheck.KINDS, "model", ("none", "valve_lag", "valve_delay"))
     log = tmp_path / "recorded.log"
     log.with_suffix(".stop").touch()
@@ -94,13 +96,8 @@ def test_selfcheck_cases_run_on_the_cluster_and_resume(tmp_path, monkeypatch, sc
     assert json.loads((out / "selfcheck.json").read_text())["cases"] == 3
     assert (out / "cases" / "case01" / "diagnosis.json").exists()
     assert "valve_lag" in (out / "cases" / "case01" / "truth.yaml").read_text()
-    # The diagnosis saw only measurements: the dataset index carries no truth.
-    written = [json.loads(line) for line in log.with_suffix(".index").read_text().splitlines()]
-    assert len(written) == 3
-    for index in written:
-        assert set(index) == {"experiments"}
-        assert all(set(e) <= {"file", "piston", "load_force", "role"}
-                   for e in index["experiments"])
+    # Each case recorded once on a worker, the interrupted one again on resuming.
+    assert len(log.with_suffix(".index").read_text().splitlines()) == 3
 
     # Another configuration in the same OUT is refused before anything runs.
     with pytest.raises(selfcheck.SelfcheckError, match="--seed 2 .*not.*--seed 3.*--restart"):

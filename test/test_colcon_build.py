@@ -51,6 +51,9 @@ def test_executables_and_data_installed(workspace):
     for name in ("package.xml", "config/actuator.yaml", "msg_defs/topics.yaml"):
         assert (share / name).is_file(), name
     assert (prefix / "share/ament_index/resource_index/packages/jetpipe_ros").is_file()
+    # Package data: diagnosis.json's schema beside the module that writes it.
+    assert list(prefix.glob("lib/python3*/site-packages/jetpipe_ros/diagnosis/"
+                            "diagnosis.schema.json")), "diagnosis.schema.json not installed"
 
 
 def test_installed_actuator_sim_runs(workspace, launch):

@@ -2,10 +2,12 @@
 
 import json
 import shutil
+from importlib.resources import files
 import sys
 import tempfile
 from pathlib import Path
 
+import jsonschema
 import numpy as np
 import pytest
 from scipy.signal import chirp
@@ -42,6 +44,18 @@ def make_dataset(root, params, seed=0, roles=True):
                           role=role if roles else None),
                     {"t": tr.t, "u": tr.u, "y": tr.y_meas, "p1": tr.p1_meas, "p2": tr.p2_meas}))
     return write_dataset(root, out)
+
+
+def assert_schema(path):
+    """The diagnosis.json at ``path`` is valid under the JSON Schema the package ships."""
+    schema = json.loads(files("jetpipe_ros.diagnosis").joinpath("diagnosis.schema.json")
+                        .read_text())
+    jsonschema.Draft202012Validator.check_schema(schema)
+    doc = json.loads(Path(path).read_text())
+    errors = [f"{'/'.join(map(str, e.absolute_path))}: {e.message}"
+              for e in jsonschema.Draft202012Validator(schema).iter_errors(doc)]
+    assert not errors, errors
+    return doc
 
 
 # Where the diagnosis runs: the verdict and the numbers do not depend on it (the same functions
@@ -81,8 +95,10 @@ def test_verdict_names_the_withheld_effect_and_recovers_it(lag_result):
 def test_outputs_follow_the_contract(lag_result):
     root, result = lag_result
     out = root / "out"
-    doc = json.loads((out / "diagnosis.json").read_text())
+    doc = assert_schema(out / "diagnosis.json")
     assert doc["schema"] == "jetpipe.diagnosis/2"
+    assert doc["verdict"]["model_fits"] is True and doc["data"]["cannot_judge"] == {}
+    assert doc["data"]["sensors"] == ["y", "p1", "p2"] and doc["data"]["corrections"] == []
     assert set(doc) >= {"verdict", "calibration", "gap", "localization", "ranking"}
     assert set(doc["calibration"]) >= {"knobs", "gap_before", "gap_after", "significant"}
     assert set(doc["localization"]) >= {"signals", "subsystems", "regimes", "frequency"}
@@ -113,6 +129,7 @@ def test_parameters_that_are_off_are_recalibrated_not_blamed_on_an_effect(tmp_pa
     result = diagnose(tmp_path / "data", tmp_path / "out", workers=1, quiet=True)  # see lag_result
     v, cal = result["verdict"], result["calibration"]
     assert v["effect"] == "none" and cal["significant"]
+    assert assert_schema(tmp_path / "out" / "diagnosis.json")["calibration"]["stand_ins"]
     assert cal["knobs"]["flow_gain_charge"] == pytest.approx(0.9, abs=0.02)
     assert cal["knobs"]["friction_exit"] == pytest.approx(1.3, abs=0.1)
     assert cal["gap_after"] <= 0.2 * cal["gap_before"]
@@ -280,3 +297,28 @@ def test_identify_then_diagnose_with_the_identified_parameters(tmp_path, capsys)
     aug = load_params(out / "augmented.yaml")
     assert aug["valve.lag_pole"] == pytest.approx(load_params(params)["valve.lag_pole"])
     assert "verdict: none" in capsys.readouterr().out
+
+
+def test_a_real_loggers_record_is_diagnosed_and_its_output_follows_the_schema(tmp_path):
+    # What another logger writes: one pressure sensor only, in bar gauge, time in ms, and three
+    # rows lost in every experiment. The reader converts and fills, the diagnosis leaves out
+    # what a pressure alone cannot judge, and diagnosis.json says so under its schema.
+    out = []
+    for k, (name, u, locked, role) in enumerate(_experiments()):
+        p = ModelParams().with_effect("valve_lag", corner_frequency=20.0).with_values(
+            {"mechanics.locked": locked, "sensors.noise": True, "sensors.seed": 70 + k})
+        tr = simulate(p, u)
+        keep = np.ones(tr.t.size, dtype=bool)
+        keep[1500:1503] = False
+        out.append((Entry(f"{name}.csv", piston="locked" if locked else "free", role=role,
+                          units={"t": "ms", "p1": "bar gauge"}),
+                    {"t": tr.t[keep] * 1e3, "u": tr.u[keep],
+                     "p1": (tr.p1_meas[keep] - 1e5) / 1e5}))
+    write_dataset(tmp_path / "data", out)
+    result = diagnose(tmp_path / "data", tmp_path / "out", workers=1, quiet=True)
+    doc = assert_schema(tmp_path / "out" / "diagnosis.json")
+    assert doc["data"]["sensors"] == ["p1"]
+    assert set(doc["data"]["cannot_judge"]) == {"friction_dynamics", "moving_mass"}
+    assert not {"friction_dynamics", "moving_mass"} & {r["effect"] for r in doc["ranking"]}
+    assert doc["data"]["rows_not_compared"] >= 3 * len(out)
+    assert doc["verdict"]["effect"] == result["verdict"]["effect"] == "valve_lag"

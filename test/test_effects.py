@@ -1,4 +1,4 @@
-"""Each unmodelled effect of DESIGN.md section 3 switches on from parameters and acts as named,
+"""Each unmodelled effect of docs/effects.md switches on from parameters and acts as named,
 checked against independent solutions (root finders, scipy.signal, solve_ivp)."""
 
 import numpy as np

@@ -81,9 +81,10 @@ EXPERIMENTS = [("charge", True, 300), ("square", False, 400), ("last", False, 50
 
 
 def write_bag(path: Path, ns: str = "/fb", close: bool = True,
-              sync_every: int = 0) -> tuple[BagWriter, dict]:
+              sync_every: int = 0, seed: int = 0) -> tuple[BagWriter, dict]:
     """A bag of three experiments (events after each), synced every ``sync_every`` samples
-    (as the recorder's periodic syncs would); returns the writer and the data."""
+    (as the recorder's periodic syncs would); returns the writer and the data. Bags of another
+    ``seed`` hold other values."""
     store = get_typestore(TYPESTORE)
     topics = {f"{ns}/{t.name}" if not t.name.startswith("/") else t.name: t.type
               for t in interface.load_topics().values()}
@@ -104,7 +105,7 @@ def write_bag(path: Path, ns: str = "/fb", close: bool = True,
     k = 0
     for name, locked, n in EXPERIMENTS:
         start = k
-        rng = np.random.default_rng(n)
+        rng = np.random.default_rng(n + 1000 * seed)
         y = 0.0 if locked else 0.01 * np.sin(np.arange(n + 1) / 50.0)
         y = np.broadcast_to(y, (n + 1,))
         p1 = 4e5 + 1e5 * rng.random(n + 1)
@@ -178,14 +179,21 @@ def test_unclosed_bag_cut_anywhere_recovers_every_synced_experiment(tmp_path):
 
 
 def test_closed_bag_with_truncated_file_is_recovered(tmp_path):
-    write_bag(tmp_path / "bag")
+    _, data = write_bag(tmp_path / "bag")
     (mcap,) = (tmp_path / "bag").glob("*.mcap")
     full = mcap.read_bytes()
     mcap.write_bytes(full[: int(len(full) * 0.9)])  # metadata.yaml present, footer gone
     messages: list[str] = []
     ds = read_dataset(export_bag(tmp_path / "bag", tmp_path / "out", progress=messages.append))
-    assert len(ds) >= 1
     assert any("recovering it from the MCAP stream" in m for m in messages), messages
+    # The cut takes the footer and the summary section behind the data: every experiment is
+    # still there, whole and unchanged (none lost, none cut short, no value changed).
+    assert [e.name for e in ds.entries] == ["charge", "square", "last"]
+    for entry, x in ds:
+        assert len(x.t) == len(data[entry.name]["p1"])
+        np.testing.assert_allclose(x.p1, data[entry.name]["p1"], rtol=1e-8)
+        np.testing.assert_allclose(x.p2, data[entry.name]["p2"], rtol=1e-8)
+        np.testing.assert_allclose(x.u, data[entry.name]["u"])
 
 
 def test_writer_syncs_once_the_period_has_passed(tmp_path):
@@ -206,8 +214,8 @@ def test_writer_syncs_once_the_period_has_passed(tmp_path):
 
 def test_export_overwrite_refuses_what_it_did_not_write(tmp_path, monkeypatch):
     bags = tmp_path / "bags"
-    write_bag(bags / "run1")
-    write_bag(bags / "run2")
+    _, run1 = write_bag(bags / "run1")
+    _, run2 = write_bag(bags / "run2", seed=1)  # other values: a no-op overwrite would show
     work = tmp_path / "work"  # the current directory: a dataset, but never replaced
     export_bag(bags / "run2", work, progress=lambda _: None)
     before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
@@ -237,7 +245,12 @@ def test_export_overwrite_refuses_what_it_did_not_write(tmp_path, monkeypatch):
     with pytest.raises(DatasetError, match="not empty"):
         export_bag(bags / "run2", out, progress=lambda _: None)
     export_bag(bags / "run2", out, overwrite=True, progress=lambda _: None)
-    assert len(read_dataset(out)) == 3
+    replaced = read_dataset(out)
+    assert [e.name for e in replaced.entries] == ["charge", "square", "last"]
+    for entry, x in replaced:
+        np.testing.assert_allclose(x.p1, run2[entry.name]["p1"], rtol=1e-8)
+        np.testing.assert_allclose(x.u, run2[entry.name]["u"])
+        assert not np.allclose(x.p1, run1[entry.name]["p1"])
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporaries
 
 

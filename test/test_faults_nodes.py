@@ -65,8 +65,8 @@ def _sim(launch, ns: str, *extra: str):
                    "-p", "lockstep:=true", "-p", "report_period:=0.0", *extra])
 
 
-def _rig(launch, ns: str):
-    sim = _sim(launch, ns)
+def _rig(launch, ns: str, *sim_extra: str):
+    sim = _sim(launch, ns, *sim_extra)
     ctl = launch(["-m", "jetpipe_ros.nodes.controller", "--ros-args", "-r", f"__ns:={ns}",
                   "--params-file", "config/controller.yaml"])
     sim.wait_for("started:", STARTUP)
@@ -114,7 +114,7 @@ def test_recorder_killed_mid_campaign_leaves_a_recoverable_bag(launch, tmp_path)
     ``jetpipe export`` recovers the two experiments completed before (equal to the offline
     runner) and says it recovered the bag; the joint_states samples are a gap-free prefix."""
     plan = _plan(tmp_path, PLAN)
-    sim, _ = _rig(launch, "/kr")
+    sim, _ = _rig(launch, "/kr", "-p", "report_period:=0.5")  # its step count every 0.5 s
     bag = tmp_path / "killed"
     rec = _recorder(launch, "/kr", bag, plan)
     rec.wait_for("experiment sweep_long", STARTUP + 60.0)
@@ -123,6 +123,7 @@ def test_recorder_killed_mid_campaign_leaves_a_recoverable_bag(launch, tmp_path)
           "the event of square_0p6V readable from the MCAP stream")
     rec.popen.send_signal(signal.SIGKILL)
     assert rec.popen.wait(10.0) == -signal.SIGKILL
+    killed_at = len(sim.lines)
     assert not (bag / "metadata.yaml").exists()
     with pytest.raises(Exception):  # noqa: B017 - whatever rosbags raises: it cannot open it
         with Reader(bag):
@@ -150,12 +151,22 @@ def test_recorder_killed_mid_campaign_leaves_a_recoverable_bag(launch, tmp_path)
         assert np.max(np.abs(ros.u - off.u)) < 1e-9, entry.name
         assert np.max(np.abs(ros.p1 - off.p1)) < 1.0, entry.name
         assert np.max(np.abs(ros.y - off.y)) < 1e-6, entry.name
-    # The simulator stepped on after the last synced sample only as long as the recorder lived.
+    # In lock-step the simulator steps only on commands: once the recorder is gone it stops.
+    # Its reports after the kill (every 0.5 s), past the first (which may hold the last
+    # commands), count no sample stepped.
+    _wait(lambda: len(_step_reports(sim, killed_at)) >= 3, 20.0, "three step reports")
+    assert _step_reports(sim, killed_at)[1:] == [0] * (len(_step_reports(sim, killed_at)) - 1)
     sim.popen.send_signal(signal.SIGTERM)
     line = sim.wait_for("total: stepped", 20.0)
     stepped = int(line.split("stepped ")[1].split()[0])
     recovered = int((stamps.max() - 0) // 1_000_000)
     assert 0 < recovered <= stepped
+
+
+def _step_reports(sim, start: int) -> list[int]:
+    """Samples stepped per periodic report of the simulator, from its output line ``start``."""
+    return [int(line.split("stepped ")[1].split()[0]) for line in sim.lines[start:]
+            if "stepped " in line and "total:" not in line]
 
 
 def test_simulator_killed_mid_campaign(launch, tmp_path):
@@ -189,6 +200,16 @@ def test_controller_killed_in_a_closed_loop_phase(launch, tmp_path):
     events = _events(bag)
     assert [(e["name"], e["complete"]) for e in events] == [
         ("charge_1p15V", True), ("triangle_long", False)]
+    # The export keeps the complete experiment, sample for sample as the offline runner
+    # records it, and not the interrupted one.
+    data = read_dataset(export_bag(bag, tmp_path / "data", progress=lambda _: None))
+    assert [e.name for e in data.entries] == ["charge_1p15V"]
+    (entry, ros), = list(data)
+    off = dict((e.name, x) for e, x in read_dataset(run_campaign_offline(
+        ModelParams(), load_campaign(plan), tmp_path / "off")))["charge_1p15V"]
+    assert entry.extra["missing_samples"] == 0 and ros.t.size == off.t.size
+    assert np.max(np.abs(ros.u - off.u)) < 1e-9
+    assert np.max(np.abs(ros.p1 - off.p1)) < 1.0 and np.max(np.abs(ros.p2 - off.p2)) < 1.0
 
 
 def test_no_simulator_at_start_leaves_no_bag(launch, tmp_path):

@@ -1,4 +1,4 @@
-"""jetpipe identify: each procedure recovers the pinned model (DESIGN.md s.2, the paper's
+"""jetpipe identify: each procedure recovers the pinned model (docs/model.md, the paper's
 coefficients) from simulated recordings, starting from parameters that are off; the identified
 YAML reproduces a held-out run; bad or insufficient data is named.
 
@@ -133,7 +133,7 @@ def test_valve_recovers_resonance_delay_and_lead_lag(result):
     is what is pinned)."""
     ident = result.params
     f_r, gain = peak(ident)
-    assert f_r == pytest.approx(49.7, abs=0.6)  # DESIGN.md s.2: gain peak at 49.7 Hz
+    assert f_r == pytest.approx(49.7, abs=0.6)  # docs/model.md: gain peak at 49.7 Hz
     assert gain == pytest.approx(peak(TRUTH)[1], rel=0.035)
     assert ident["valve.delay"] == pytest.approx(0.002, abs=3e-4)
     assert ident["valve.back_emf_constant"] == pytest.approx(0.1, rel=0.15)

@@ -1,9 +1,12 @@
 """jetpipe selfcheck, small: withheld truths (the plant's and the model's) are found, `none` and
-`unlisted` are scored as specified, the bench deviations are the raw parameters, nothing leaks.
+`unlisted` are scored as specified, the bench deviations are the raw parameters, the datasets
+a self-check writes carry no truth.
 
 A run on model truths (none and a valve lag, seed 2) is scored in test_cluster, whose
 interrupted and resumed self-check on a Dask cluster runs these very cases; here the run on a
 plant truth, in this process."""
+
+import inspect
 
 import numpy as np
 import pytest
@@ -12,7 +15,7 @@ import yaml
 from jetpipe_ros.dataset import Entry, write_dataset
 from jetpipe_ros.diagnosis import selfcheck
 from jetpipe_ros.diagnosis.calibration import CALIBRATION
-from jetpipe_ros.model import ModelParams
+from jetpipe_ros.model import ModelParams, simulate
 from jetpipe_ros.model.params import end_stop_volumes
 from jetpipe_ros.plant import REAL_EFFECTS, PlantSpec
 from jetpipe_ros.plant import simulate as simulate_plant
@@ -61,8 +64,16 @@ def test_deviations_move_raw_parameters_as_the_knobs_they_amount_to():
     stops, nominal_stops = end_stop_volumes(bench), end_stop_volumes(nominal)
     assert stops[0] / nominal_stops[0] == pytest.approx(knobs["dead_volume_1"], rel=1e-9)
     assert stops[1] / nominal_stops[1] == pytest.approx(knobs["dead_volume_2"], rel=1e-9)
-    temp = bench["chamber.temperature"] / nominal["chamber.temperature"]
-    assert knobs["flow_gain_charge"] == pytest.approx(bench["flow.gain_charge"] * temp)
+    # The knobs stand for the raw changes: with them applied the nominal model charges a
+    # locked chamber as the bench does (the charging flow map over the gas temperature and
+    # the dead volume), twenty times closer than the nominal model.
+    charge = np.concatenate([np.full(400, 2.0), np.full(200, -2.0)])
+    locked = {"mechanics.locked": True}
+    on_bench = simulate(bench.with_values(locked), charge).p1
+    with_knobs = simulate(CALIBRATION.apply(nominal, knobs).with_values(locked), charge).p1
+    as_nominal = simulate(nominal.with_values(locked), charge).p1
+    miss = np.max(np.abs(with_knobs - on_bench))
+    assert miss < 0.05 * np.max(np.abs(as_nominal - on_bench))  # measured: 2.4 %
     for k, v in knobs.items():  # the stated sizes
         assert abs(v - 1.0) <= (0.35 if "friction" in k or "viscous" in k else 0.25), k
 
@@ -108,8 +119,9 @@ def _plant_dataset(root, spec, seed):
 
 
 def test_small_selfcheck_scores_the_diagnosis(tmp_path, monkeypatch):
-    """A delay in the plant's continuous form (not quantised to the model's sub-steps), found
-    and its size recovered, by a self-check run in this process. (Model truths: test_cluster.)"""
+    """A delay in the plant's form (the chain advanced exactly with the command switching
+    inside a sub-step, its own code apart from the model's), found and its size recovered, by a
+    self-check run in this process."""
     written = []
 
     def build(truth, root, seed):
@@ -132,12 +144,7 @@ def test_small_selfcheck_scores_the_diagnosis(tmp_path, monkeypatch):
     assert md.startswith("# jetpipe selfcheck: 1 cases") and "from the plant" in md
     assert (tmp_path / "plant" / "cases" / "case00" / "diagnosis.json").exists()
     assert "plant" in (tmp_path / "plant" / "cases" / "case00" / "truth.yaml").read_text()
-    # The diagnosis saw only measurements: the dataset index carries no truth.
-    assert len(written) == 1
-    for index in written:
-        assert set(index) == {"experiments"}
-        assert all(set(e) <= {"file", "piston", "load_force", "role"}
-                   for e in index["experiments"])
+    assert len(written) == 1  # one case, one dataset
 
 
 def test_selfcheck_datasets_are_the_default_campaign(tmp_path):
@@ -145,9 +152,26 @@ def test_selfcheck_datasets_are_the_default_campaign(tmp_path):
     from jetpipe_ros.dataset import read_dataset
     from jetpipe_ros.diagnosis.data import prepare
 
-    for truth in (ModelParams(), PlantSpec()):
+    # What a self-check's diagnoses read is what record() writes (its default writer), and it
+    # carries no truth: the index holds how each experiment was run, the CSVs what a recording
+    # of the topics holds (no friction force, no effect parameter), whatever the truth.
+    assert inspect.signature(selfcheck.run_selfcheck).parameters[
+        "make_dataset"].default is selfcheck.record
+    truths = (ModelParams().with_effect("valve_lag", corner_frequency=25.0),
+              PlantSpec().with_effect("null_offset", offset=0.1))
+    for truth in truths:
         root = tmp_path / type(truth).__name__
         selfcheck.record(truth.with_values({"sensors.noise": True}), root, seed=7)
+        index_text = (root / "dataset.yaml").read_text()
+        index = yaml.safe_load(index_text)
+        assert set(index) == {"experiments"}
+        assert all(set(e) <= {"file", "piston", "load_force", "role", "kind"}
+                   for e in index["experiments"])
+        assert not any(word in index_text for word in ("valve_lag", "null_offset", "truth",
+                                                       "effect"))
+        for csv in root.glob("*.csv"):
+            header = csv.read_text().split("\n", 1)[0].split(",")
+            assert set(header) <= {"t", "u", "y", "p1", "p2", "v", "f_load", "setpoint"}, csv
         prep = prepare(read_dataset(root))
         assert [r.name for r in prep.records] == [e.name
                                                   for e in default_campaign().experiments]

@@ -1,4 +1,4 @@
-"""Valve chain against the numbers of DESIGN.md section 2 (and the paper's Sec. 2)."""
+"""Valve chain against the numbers of docs/model.md (and the paper's Sec. 2)."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Convert a campaign bag into the dataset layout of DESIGN.md s.5 (``jetpipe export``).
+"""Convert a campaign bag into the dataset layout of docs/data.md (``jetpipe export``).
 
 The ``id_recorder`` marks each experiment with an event on ``/id_recorder/events`` (name, first
 sample's stamp, sample count, piston, role, load). For every complete experiment the export
@@ -226,7 +226,7 @@ def _run(args: argparse.Namespace) -> int:
 def add_command(subparsers) -> None:
     """``jetpipe export BAG DATASET_DIR``: a campaign bag to a dataset."""
     p = subparsers.add_parser(
-        "export", help="convert an id_recorder campaign bag into a dataset (DESIGN.md s.5)",
+        "export", help="convert an id_recorder campaign bag into a dataset (docs/data.md)",
         description="Read a rosbag2 (MCAP) bag recorded by id_recorder and write one CSV per "
                     "complete experiment (t,u,y,p1,p2,v,f_load) and dataset.yaml.")
     p.add_argument("bag", help="bag directory (holds metadata.yaml and the .mcap file; a bag "

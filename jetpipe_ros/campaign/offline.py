@@ -65,7 +65,7 @@ def run_campaign_offline(params: ModelParams, campaign: Campaign, out_dir: str |
                          seed: int | None = None, controller: PidConfig | None = None,
                          overwrite: bool = False,
                          actuator: Callable[[ModelParams], Any] = Actuator) -> Path:
-    """Simulate every experiment of ``campaign`` and write a DESIGN.md s.5 dataset.
+    """Simulate every experiment of ``campaign`` and write a docs/data.md dataset.
 
     Args:
         params: the model that stands in for the hardware (effects, noise as configured;

@@ -34,7 +34,7 @@ switches the chambers to regulators holding p1, p2 (``chamber.regulated``), plac
 rest at the end stop it leaves (the outer one, y = +stroke/2, for the entry phase p2 > p1; the
 inner one for the exit phase) and holds it there with the hydraulic load ``load`` [N], which
 starts at S (p1 - p2) (``release`` without ``level``; S, the stroke: the nominal values of
-DESIGN.md s.2) and is then released. Its settle phase keeps the piston at the stop under the
+docs/model.md) and is then released. Its settle phase keeps the piston at the stop under the
 initial load. ``load`` (a per-sample external load [N]) may also drive other open-loop
 experiments, instead of the constant ``load_force``.
 
@@ -65,7 +65,7 @@ from jetpipe_ros.fileio import load_yaml
 from jetpipe_ros.model.params import SPECS
 from jetpipe_ros.package_data import share_file
 
-#: Nominal piston area S [m^2] and half stroke [m] (DESIGN.md s.2): the regulated rig's
+#: Nominal piston area S [m^2] and half stroke [m] (docs/model.md): the regulated rig's
 #: initial load S (p1 - p2) and the end stops it places the piston at.
 AREA = float(SPECS["chamber.piston_area"].default)
 HALF_STROKE = 0.5 * float(SPECS["mechanics.stroke"].default)

@@ -1,4 +1,4 @@
-"""Datasets on disk (DESIGN.md section 5): experiment CSVs and the dataset.yaml index."""
+"""Datasets on disk (docs/data.md): experiment CSVs and the dataset.yaml index."""
 
 from jetpipe_ros.dataset.dataset import Dataset, Entry, read_dataset, read_index, write_dataset
 from jetpipe_ros.dataset.errors import DatasetError

@@ -1,4 +1,4 @@
-"""A dataset directory (DESIGN.md s.5): one CSV per experiment, indexed by ``dataset.yaml``.
+"""A dataset directory (docs/data.md): one CSV per experiment, indexed by ``dataset.yaml``.
 
 ``dataset.yaml`` lists the experiments with how each was run::
 
@@ -145,7 +145,7 @@ def read_index(root: str | Path) -> list[Entry]:
         doc = load_yaml(index)
     except FileNotFoundError:
         raise DatasetError(f"{index}: missing; a dataset directory needs an index listing its "
-                           f"experiments (DESIGN.md s.5)") from None
+                           f"experiments (docs/data.md)") from None
     except yaml.YAMLError as exc:
         raise DatasetError(f"{index}: not valid YAML: {exc}") from None
     if not isinstance(doc, Mapping) or not isinstance(doc.get("experiments"), list):

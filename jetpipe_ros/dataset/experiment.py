@@ -1,4 +1,4 @@
-"""One experiment as a CSV file: columns ``t,u,y,p1,p2`` [s, V, m, Pa absolute] (DESIGN.md s.5).
+"""One experiment as a CSV file: columns ``t,u,y,p1,p2`` [s, V, m, Pa absolute] (docs/data.md).
 
 ``t`` and ``u`` are required, and at least one measured column of ``y``, ``p1``, ``p2``: a
 bench may have a position sensor only, or one pressure sensor. Optional columns ``v`` [m/s]

@@ -4,8 +4,8 @@ Real hardware never has the paper's numbers exactly: every valve, seal, dead vol
 differs by several to tens of per cent. The diagnosis recalibrates a small set of lumped knobs on
 the training data before it judges any unmodelled effect, and reports them apart, so that a gap
 recalibration closes is not blamed on an effect and an effect masked by mis-set parameters is
-still found. Each knob is a factor on the nominal model (the ``--params`` file, else DESIGN.md
-s.2), so 1 means "as nominal":
+still found. Each knob is a factor on the nominal model (the ``--params`` file, else the
+model's defaults, docs/model.md), so 1 means "as nominal":
 
 | knob | multiplies | what differs on real hardware |
 |---|---|---|

@@ -1,8 +1,8 @@
-"""The candidate causes of a gap: each unmodelled effect of DESIGN.md s.3 with the parameters the
+"""The candidate causes of a gap: each unmodelled effect of docs/effects.md with the parameters the
 diagnosis fits, their search ranges, and a typical size used to judge whether the experiments
 could show the effect at all.
 
-Ranges are wider than the typical sizes of DESIGN.md s.3 so a real effect is not clipped, and each
+Ranges are wider than the typical sizes of docs/effects.md so a real effect is not clipped, and each
 contains the value at which the effect vanishes (zero delay, hysteresis, leak, bias; n = 1; the
 nominal supply and mass; a corner, wall heat conductance or bristle stiffness high enough to be
 invisible), so a fit to data without the effect can land on "no effect". The forms the physics
@@ -110,7 +110,7 @@ class Candidate(KnobGroup):
 
     @property
     def effect(self) -> str:
-        """The effect's name (DESIGN.md s.3)."""
+        """The effect's name (docs/effects.md)."""
         return effect_of(self.name)
 
     @property
@@ -124,7 +124,7 @@ class Candidate(KnobGroup):
 
 
 def effect_of(name: str) -> str:
-    """The effect (DESIGN.md s.3) of a candidate name (``effect`` or ``effect:form``)."""
+    """The effect (docs/effects.md) of a candidate name (``effect`` or ``effect:form``)."""
     return name.split(":", 1)[0]
 
 

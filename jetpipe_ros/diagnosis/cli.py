@@ -105,7 +105,8 @@ def add_command(subparsers) -> None:
                         "a fleet: one folder of outputs each in OUT_DIR, plus fleet.json and "
                         "fleet.html (exit status 1 if any dataset failed)")
     p.add_argument("--out", required=True, metavar="OUT_DIR", help="output directory")
-    p.add_argument("--params", help="nominal model parameter YAML (default: DESIGN.md s.2)")
+    p.add_argument("--params", help="nominal model parameter YAML (default: the paper's "
+                   "model, docs/model.md)")
     p.add_argument("--jobs", type=positive_int, default=2,
                    help="worker processes of the local Dask cluster (default 2; 1: in this "
                         "process); ignored with --scheduler")

@@ -1,6 +1,6 @@
 """``jetpipe diagnose``: where the model departs from the measurements, whether its nominal
 parameters are off, which unmodelled effect causes the rest, and how far the gap shrinks once
-both are corrected (DESIGN.md s.6).
+both are corrected (docs/diagnosis.md).
 
 Steps, each reported as progress: read and split the dataset; score the nominal model and locate
 its gap (signals, subsystems, regimes, frequency bands); check which candidates the experiments

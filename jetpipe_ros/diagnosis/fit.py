@@ -56,7 +56,7 @@ class Fit:
 
     @property
     def effect_names(self) -> tuple[str, ...]:
-        """The effects' names (DESIGN.md s.3), without their forms."""
+        """The effects' names (docs/effects.md), without their forms."""
         return tuple(effect_of(g) for g in self.effects)
 
     @property

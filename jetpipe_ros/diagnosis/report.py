@@ -290,7 +290,7 @@ def _campaign_entry(sep: dict) -> str:
     ``config/campaign.yaml`` and ``id_recorder``)."""
     entry = yaml.safe_dump([sep["campaign_entry"]], sort_keys=False, default_flow_style=None)
     return (f"To record '{html.escape(sep['experiment'])}', add it to the campaign's "
-            f"<code>experiments:</code> (<code>id_recorder</code>, DESIGN.md s.4):"
+            f"<code>experiments:</code> (<code>id_recorder</code>, docs/node.md):"
             f"<pre>{html.escape(entry)}</pre>")
 
 

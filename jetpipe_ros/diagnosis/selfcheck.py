@@ -68,7 +68,7 @@ SHRINKAGE_PNG = "selfcheck_shrinkage.png"
 #: Confidence level of the accuracy intervals.
 CONFIDENCE = 0.95
 
-#: Model truths: realistic sizes (DESIGN.md s.3), name -> sampler of the effect's parameters.
+#: Model truths: realistic sizes (docs/effects.md), name -> sampler of the effect's parameters.
 SIZES: dict[str, Callable[[np.random.Generator], dict]] = {
     "valve_delay": lambda r: {"delay": r.uniform(1e-3, 5e-3)},
     "valve_lag": lambda r: {"corner_frequency": math.exp(r.uniform(math.log(10), math.log(60)))},

@@ -42,7 +42,7 @@ from jetpipe_ros.diagnosis.prediction import predict
 from jetpipe_ros.diagnosis.verdict import Ranked, Settled, Verdict, confidence_of, rank
 from jetpipe_ros.model import ModelParams, simulate
 
-#: Effects (DESIGN.md s.3) that can take the place of a calibration knob in the default
+#: Effects (docs/effects.md) that can take the place of a calibration knob in the default
 #: campaign's experiments, by knob and by the direction of its move (+1: factor above 1).
 STAND_INS: dict[tuple[str, int], tuple[str, ...]] = {
     # pre-sliding displacement before breakaway reads as a lower breakaway force; a valve
@@ -74,7 +74,7 @@ PRESLIDING_DURATION = 6.0
 PRESLIDING_MARGIN = 0.9
 AMPLITUDE_TOL = 0.02
 #: Motion [m] below which a simulated piston counts as stuck (1 % of the position sensor's
-#: noise, DESIGN.md s.2).
+#: noise, docs/model.md).
 STUCK = 1.5e-7
 
 

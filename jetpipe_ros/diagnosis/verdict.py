@@ -167,7 +167,7 @@ def pinned_second(pair: Ranked, ranking: Sequence[Ranked]) -> list[str]:
     sit at the far edge of their search range (:meth:`KnobGroup.pinned`), as
     ``candidate.knob``.
 
-    The ranges reach several times beyond the largest typical size of DESIGN.md s.3, and the
+    The ranges reach several times beyond the largest typical size of docs/effects.md, and the
     second effect of a pair is the weaker one: fitted at such an edge it measures nothing, it
     compensates what the first effect's form misses (seen on a plant whose supply droops with
     the flow drawn: the pressure sensors' gain error driven to the range's 5 %, where the

@@ -47,7 +47,7 @@ def add_command(subparsers) -> None:
         description="Run the paper's identification procedures (flow map, valve dynamics, "
                     "hysteresis, friction planes) on the experiments of a dataset that feed "
                     "them, write a parameter YAML the simulator loads and an HTML report.")
-    cmd.add_argument("dataset", help="dataset directory (dataset.yaml + CSVs, DESIGN.md s.5)")
+    cmd.add_argument("dataset", help="dataset directory (dataset.yaml + CSVs, docs/data.md)")
     cmd.add_argument("--out", required=True, help="parameter YAML to write (ROS params layout)")
     cmd.add_argument("--params", help="starting parameters (YAML); default: the nominal model")
     cmd.add_argument("--report", help="HTML report path; default: OUT with .report.html")

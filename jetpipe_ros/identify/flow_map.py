@@ -1,16 +1,16 @@
 """Mass flow map of the valve (Sec. 2.3, Eq. 7-8) from constant-volume charge/discharge tests.
 
-With the piston locked each chamber holds a constant volume, so Eq. 7 gives the mass flow into
-it from its pressure alone: q = V / (r T) dp/dt. The derivative is the zero-phase Savitzky-Golay
+With the piston locked each chamber holds a constant volume, so Eq. 7 gives the mass flow into it
+from its pressure alone: q = V / (r T) dp/dt. The derivative is the zero-phase Savitzky-Golay
 estimate of :mod:`.differentiate`. While a command level is held (after the valve has settled)
-chamber 1 receives q(u_eq, p1) and, by the valve's symmetry (Remark 2), chamber 2 receives
-q(-u_eq, p2), so both chambers give samples of the same map. In steady state the equivalent
-voltage is the command clipped to the jet-pipe's travel, u_eq = clip(u, -2.8, 3.0) V (DESIGN.md
-s.2): the map is fitted against u_eq, so a command beyond the travel (e.g. 3.4 V) adds samples at
-the travel's end. The fit is Eq. 8's fifth-order polynomial in (u [V], p [bar]) by linear least
-squares, in g/s as the paper writes its coefficients, on the regressors of the model's own
-Eq. 8 (:func:`jetpipe_ros.model.flow.flow_matrix`), so the fitted coefficients mean exactly
-what the simulator does with them.
+chamber 1 receives q(u_eq, p1) and, by the valve's symmetry (Remark 2), chamber 2 receives q(-u_eq,
+p2), so both chambers give samples of the same map. In steady state the equivalent voltage is the
+command clipped to the jet-pipe's travel, u_eq = clip(u, -2.8, 3.0) V (docs/model.md): the map is
+fitted against u_eq, so a command beyond the travel (e.g. 3.4 V) adds samples at the travel's end.
+The fit is Eq. 8's fifth-order polynomial in (u [V], p [bar]) by linear least squares, in g/s as the
+paper writes its coefficients, on the regressors of the model's own Eq. 8
+(:func:`jetpipe_ros.model.flow.flow_matrix`), so the fitted coefficients mean exactly what the
+simulator does with them.
 
 Samples at or below 1.05 bar are left out: a chamber vented down to atmosphere has no outflow
 whatever the polynomial says (the model's vent floor), which is not the valve's map.

@@ -13,9 +13,10 @@ At equal u_eq the rising half lies at u = u_eq + w and the falling half at u = u
 play of half-width w (the model's ``valve_hysteresis`` effect), so w is half the horizontal
 separation, taken as the median over the u_eq range both halves cover (leaving out the flat
 turns at the ends, where u moves while u_eq waits). The midpoint line is the mean of the halves;
-DESIGN.md's reading of Eq. 5 makes it u = u_eq, and its fitted slope and offset say how well the
-valve follows that. Chamber 1 resolves u_eq where its pressure stays above the vent floor
-(u_eq above about -2.2 V), chamber 2 (which sees -u_eq) below about +2.2 V; both are used.
+the model's reading of Eq. 5 (docs/model.md) makes it u = u_eq, and its fitted slope and offset
+say how well the valve follows that. Chamber 1 resolves u_eq where its pressure stays above the
+vent floor (u_eq above about -2.2 V), chamber 2 (which sees -u_eq) below about +2.2 V; both are
+used.
 """
 
 from __future__ import annotations

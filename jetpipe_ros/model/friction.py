@@ -16,7 +16,7 @@ from numba import njit
 #: Coulomb F_C [N]; columns c0, c1, c2.
 BREAKAWAY, STRIBECK, VISCOUS, COULOMB = 0, 1, 2, 3
 
-#: Physical floors: |F_C| >= 1 N, |v_s| >= 1e-4 m/s (DESIGN.md section 2).
+#: Physical floors: |F_C| >= 1 N, |v_s| >= 1e-4 m/s (docs/model.md).
 MIN_COULOMB = 1.0
 MIN_STRIBECK = 1e-4
 

@@ -52,5 +52,5 @@ class Limits:
                    load=load_limit(params))
 
 
-#: The nominal actuator's limits (DESIGN.md s.2).
+#: The nominal actuator's limits (docs/model.md).
 NOMINAL = Limits()

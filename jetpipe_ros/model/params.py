@@ -23,7 +23,7 @@ from jetpipe_ros.model.errors import ParameterError
 
 NODE_NAME = "actuator_sim"
 
-#: The unmodelled effects of DESIGN.md section 3, with the subsystem each belongs to.
+#: The unmodelled effects of docs/effects.md, with the subsystem each belongs to.
 EFFECTS: dict[str, str] = {
     "valve_delay": "valve",
     "valve_lag": "valve",
@@ -159,7 +159,7 @@ for _phase, _planes in FRICTION_PLANES.items():
             f"{_phase} phase {_qty.replace('_', ' ')} plane c0 + c1 p1 + c2 p2 (p in bar)",
             FRICTION_UNITS[_qty], length=3))
 
-#: Parameters of each effect (besides ``effects.<name>.enabled``). Typical sizes: DESIGN.md s.3.
+#: Parameters of each effect (besides ``effects.<name>.enabled``). Typical sizes: docs/effects.md.
 _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
     "valve_delay": [_p("delay", 0.002, "Extra transport delay", "s", 0.0, 0.05)],
     "valve_lag": [

@@ -1,6 +1,6 @@
 """Jet-pipe servo valve: the linear electro-mechanical chain and the jet-pipe characteristic.
 
-Signal path (DESIGN.md section 2)::
+Signal path (docs/model.md)::
 
     u [V] -> clip(+-command_limit) -> delay -> G_lag(s) * G_jp(s)/G_jp(0) -> u_f [V]
           -> (hysteresis effect) -> u_eq = clip(u_f, -2.8, 3.0) [V] -> flow map
@@ -37,7 +37,7 @@ def midpoint_voltage(x_mm: np.ndarray | float) -> np.ndarray:
 def jetpipe_position(u_f: np.ndarray | float) -> np.ndarray:
     """Jet-pipe position [m] for equivalent voltage ``u_f`` [V]: -h^-1(u_f), saturated at 1 mm.
 
-    The sign flip makes positive voltage give positive position (DESIGN.md section 2).
+    The sign flip makes positive voltage give positive position (docs/model.md).
     """
     x_mm = np.interp(u_f, _U_V[::-1], _X_MM[::-1])
     return -x_mm * 1e-3

@@ -1,4 +1,4 @@
-"""controller: a position PID closing the loop over the topics of DESIGN.md s.4.
+"""controller: a position PID closing the loop over the topics of docs/node.md.
 
 Subscribes ``position`` [m] (1 kHz from the simulator or the hardware driver),
 ``position_setpoint`` [m] and ``voltage_excitation`` [V]; publishes ``voltage_cmd`` [V], one per

@@ -1,6 +1,6 @@
 """A stand-in for real hardware, written apart from the model's effects.
 
-The plant simulates the actuator with the pinned nominal physics of DESIGN.md s.2 (the model's
+The plant simulates the actuator with the pinned nominal physics of docs/model.md (the model's
 one copy of each pinned equation: Eq. 8, Eq. 13, the friction planes and Eq. 15/18, the valve
 chain's exact discretisation, the parameters) and, switched on at will, real effects in other
 functional forms than the model's candidates, and effects on no list, each with its own

@@ -1,7 +1,7 @@
 """The plant's real effects as a withheld truth: subsystem, the listed effect each would be
-named by (DESIGN.md s.3) or ``unlisted``, and a sampler of realistic sizes.
+named by (docs/effects.md) or ``unlisted``, and a sampler of realistic sizes.
 
-Sizes are DESIGN.md s.3's typical sizes read through each form (e.g. a transducer whose
+Sizes are the typical sizes of docs/effects.md read through each form (e.g. a transducer whose
 equivalent lag 2 zeta / w_n falls in 1-13 ms, a leak of a few % of the valve's rated flow), and
 for the effects on no list, sizes that matter on a real bench (a null offset of 0.05-0.2 V, a
 cushion of 2-4 mm).
@@ -20,7 +20,7 @@ class RealEffect(NamedTuple):
     """What a real effect is to the diagnosis, and how large it is drawn."""
 
     subsystem: str  #: valve | chamber | mechanics | sensors
-    listed: str  #: the DESIGN.md s.3 effect that names it, or "unlisted"
+    listed: str  #: the effect that names it (docs/effects.md), or "unlisted"
     sample: Callable[[np.random.Generator], dict[str, float]]  #: parameters at a realistic size
 
 
