@@ -10,14 +10,15 @@
         units: {u: mV}      # units of this CSV's columns, optional (overrides the top level)
     units: {t: ms, p1: bar gauge, p2: bar gauge}   # optional, for every experiment
 
-Units (:mod:`jetpipe_ros.dataset.units`) are converted to SI when the experiments are read;
-each experiment's notes, and :attr:`Dataset.notes`, say what was converted and what was done to
-its time base (:mod:`jetpipe_ros.dataset.timebase`). Reading validates the index (errors name the file, the entry and the field) and every CSV it
-lists, including physical plausibility (:mod:`jetpipe_ros.dataset.plausibility`). Writing
-builds the whole directory beside the target and renames it into place, so a failed write never
-leaves a half-written dataset behind; it replaces an existing directory only if asked to and
-only if that directory is a dataset (its ``dataset.yaml`` and the files it lists, nothing else)
-that neither is nor contains the current directory or a protected path (the bag being read).
+Units (:mod:`jetpipe_ros.dataset.units`) are converted to SI when the experiments are read; each
+experiment's notes, and :attr:`Dataset.notes`, say what was converted and what was done to its
+time base (:mod:`jetpipe_ros.dataset.timebase`). Reading validates the index (errors name the
+file, the entry and the field) and every CSV it lists, including physical plausibility
+(:mod:`jetpipe_ros.dataset.plausibility`). Writing builds the whole directory beside the target
+and renames it into place, so a failed write never leaves a half-written dataset behind; it
+replaces an existing directory only if asked to and only if that directory is a dataset (its
+``dataset.yaml`` and the files it lists, nothing else) that neither is nor contains the current
+directory or a protected path (the bag being read).
 """
 
 from __future__ import annotations

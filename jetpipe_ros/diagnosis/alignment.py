@@ -15,9 +15,10 @@ pieces of evidence that do not share their assumptions:
   locked-piston records are used when there are enough (their pressures answer the valve
   directly), else all. No valve lag is fitted beside it: a lag at its vanishing corner (300 Hz)
   still delays by 0.5 ms, which the offset would then pay back, and a real lag looks like a
-  delay of several ms anyway (which only the controller's reaction below sees through). A negative offset (the measurements answer sooner than the valve
-  allows) is a logging convention, not physics; a positive one is the same, in open loop, as an
-  extra valve delay (``valve_delay``): both readings fit.
+  delay of several ms anyway (which only the controller's reaction below sees through). A
+  negative offset (the measurements answer sooner than the valve allows) is a logging
+  convention, not physics; a positive one is the same, in open loop, as an extra valve delay
+  (``valve_delay``): both readings fit.
 - **The controller's reaction** (closed loop). A controller reacts at once to the sensor noise
   of the position it reads, while the plant cannot answer its command within the valve's delay.
   The high-frequency part of the command (less its zero-phase smoothing) is regressed on that

@@ -3,9 +3,9 @@
 Regimes are read from the measurements: for free-piston experiments the motion (stuck, reversal,
 moving, high velocity, end stop) and the valve amplitude (small |u| < 0.6 V, large); for every
 experiment with a pressure sensor whether chamber 1 is charging or discharging. Frequency
-responses go from the command to a chamber pressure (the position without one), estimated with Welch cross-spectra of data and model over the samples
-where the data are coherent, and compared per band in gain [%] and phase [deg]: the paper's
-validation metrics.
+responses go from the command to a chamber pressure (the position without one), estimated with
+Welch cross-spectra of data and model over the samples where the data are coherent, and compared
+per band in gain [%] and phase [deg]: the paper's validation metrics.
 """
 
 from __future__ import annotations

@@ -20,13 +20,13 @@ physics stays). The part of each error that has the shape of a calibration knob 
 valve gain error, a dead volume, a friction level) is removed by least squares: it is a mis-set
 parameter, not missing physics. What remains is compared with the same on the noise twin of the
 dataset (the model itself re-measured with the sensor noise, :mod:`noise_floor`): the ratio of
-their RMS says which equation holds a gap beyond noise that no recalibration explains. The error is then regressed on a small library of terms that
-each name a physical shape and the subsystem it belongs to (a constant, an offset in the valve
-command, a flow gain that changes with chamber pressure, a leak across the piston or to
-atmosphere, a force near the end stops, ...), with a sparse linear model whose number of terms
-is chosen by the Bayesian information criterion (scikit-learn's ``LassoLarsIC``). The terms
-that carry the error describe the missing physics in words, with the operating regime where the
-error is largest.
+their RMS says which equation holds a gap beyond noise that no recalibration explains. The error
+is then regressed on a small library of terms that each name a physical shape and the subsystem
+it belongs to (a constant, an offset in the valve command, a flow gain that changes with chamber
+pressure, a leak across the piston or to atmosphere, a force near the end stops, ...), with a
+sparse linear model whose number of terms is chosen by the Bayesian information criterion
+(scikit-learn's ``LassoLarsIC``). The terms that carry the error describe the missing physics in
+words, with the operating regime where the error is largest.
 """
 
 from __future__ import annotations
