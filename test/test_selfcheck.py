@@ -155,8 +155,9 @@ def test_selfcheck_datasets_are_the_default_campaign(tmp_path):
     # What a self-check's diagnoses read is what record() writes (its default writer), and it
     # carries no truth: the index holds how each experiment was run, the CSVs what a recording
     # of the topics holds (no friction force, no effect parameter), whatever the truth.
+    # (the default writer: record() at the campaign's rate, no other logger's rewrite)
     assert inspect.signature(selfcheck.run_selfcheck).parameters[
-        "make_dataset"].default is selfcheck.record
+        "make_dataset"].default == selfcheck.Logged(None, 1000.0)
     truths = (ModelParams().with_effect("valve_lag", corner_frequency=25.0),
               PlantSpec().with_effect("null_offset", offset=0.1))
     for truth in truths:
