@@ -24,7 +24,7 @@ from pathlib import Path
 
 from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.diagnosis import diagnose
-from jetpipe_ros.diagnosis.cli import campaign_dataset
+from jetpipe_ros.campaign import campaign_dataset
 from jetpipe_ros.model import ModelParams
 
 

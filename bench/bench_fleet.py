@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 
 from jetpipe_ros.diagnosis import diagnose
-from jetpipe_ros.diagnosis.cli import campaign_dataset
+from jetpipe_ros.campaign import campaign_dataset
 from jetpipe_ros.diagnosis.cluster import Cluster
 from jetpipe_ros.diagnosis.fleet import run_fleet
 from jetpipe_ros.diagnosis.selfcheck import run_selfcheck

@@ -57,7 +57,7 @@ def rich_command(seconds: float, dt: float = 1e-3) -> np.ndarray:
 
 def make_dataset(root: Path) -> None:
     """The default campaign simulated with sensor noise (what ``jetpipe selfcheck`` diagnoses)."""
-    from jetpipe_ros.diagnosis.cli import campaign_dataset
+    from jetpipe_ros.campaign import campaign_dataset
     from jetpipe_ros.model import ModelParams
 
     campaign_dataset(ModelParams().with_values({"sensors.noise": True}), root, seed=1)

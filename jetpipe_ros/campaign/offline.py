@@ -13,13 +13,14 @@ the command applied over [t_k, t_k+1), the convention of :func:`jetpipe_ros.mode
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from jetpipe_ros.campaign.plan import Campaign, Phase
+from jetpipe_ros.campaign.plan import Campaign, Phase, default_campaign
 from jetpipe_ros.control import Pid, PidConfig
 from jetpipe_ros.dataset import Entry, write_dataset
 from jetpipe_ros.model import Actuator, ModelParams
@@ -109,3 +110,16 @@ def run_campaign_offline(params: ModelParams, campaign: Campaign, out_dir: str |
                           load_force=exp.load_force, role=exp.role, extra=extra)
             experiments.append((entry, cols))
     return write_dataset(out_dir, experiments, overwrite=overwrite)
+
+
+def campaign_dataset(params: ModelParams, root: str | Path, seed: int,
+                     sample_time: float | None = None,
+                     actuator: Callable[[ModelParams], Any] = Actuator) -> Path:
+    """The default campaign (``config/campaign.yaml``) recorded offline on ``params`` (or on
+    what ``actuator`` builds from them, e.g. the plant) into the dataset directory ``root``:
+    sensor noise as ``params`` say, seeded with ``seed % 100000``, at the plan's sample time or
+    ``sample_time`` [s]."""
+    plan = default_campaign()
+    if sample_time is not None:
+        plan = dataclasses.replace(plan, sample_time=sample_time)
+    return run_campaign_offline(params, plan, root, seed=seed % 100000, actuator=actuator)

@@ -55,19 +55,6 @@ def _fleet(args: argparse.Namespace, dirs, params) -> int:
     return 0 if fleet["failed"] == 0 else 1
 
 
-def campaign_dataset(params, root, seed: int, sample_time: float | None = None) -> None:
-    """The default campaign (config/campaign.yaml) simulated offline with ``params``, at the
-    plan's sample time or ``sample_time`` [s]."""
-    import dataclasses
-
-    from jetpipe_ros.campaign import default_campaign, run_campaign_offline
-
-    plan = default_campaign()
-    if sample_time is not None:
-        plan = dataclasses.replace(plan, sample_time=sample_time)
-    run_campaign_offline(params, plan, root, seed=seed % 100000)
-
-
 def _selfcheck(args: argparse.Namespace) -> int:
     from pathlib import Path
 

@@ -47,6 +47,7 @@ import numpy as np
 import yaml
 from distributed import as_completed
 
+from jetpipe_ros.campaign import campaign_dataset as on_model
 from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.diagnosis.cluster import Cluster
 from jetpipe_ros.diagnosis.data import prepare
@@ -56,6 +57,7 @@ from jetpipe_ros.fileio import to_json, write_files, write_text
 from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError, simulate
 from jetpipe_ros.model.params import end_stop_volumes
 from jetpipe_ros.plant import REAL_EFFECTS, PlantSpec
+from jetpipe_ros.plant import campaign_dataset as on_plant
 from jetpipe_ros.plant import simulate as simulate_plant
 from jetpipe_ros.plant.logger import log
 
@@ -300,12 +302,8 @@ def record(truth: ModelParams | PlantSpec, root: Path, seed: int,
     """The default campaign recorded on ``truth`` (the plant or the model) into ``root``, at
     its own sample time or ``sample_time`` [s]."""
     if isinstance(truth, PlantSpec):
-        from jetpipe_ros.plant import campaign_dataset as on_plant
-
         on_plant(truth, root, seed, sample_time)
     else:
-        from jetpipe_ros.diagnosis.cli import campaign_dataset as on_model
-
         on_model(truth, root, seed, sample_time)
 
 
