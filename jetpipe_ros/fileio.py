@@ -276,3 +276,14 @@ def load_yaml(path: str | os.PathLike[str]) -> Any:
     """The YAML document in file ``path`` (errors name it: OSError, yaml.YAMLError)."""
     with open(path, encoding="utf-8") as handle:
         return parse_yaml(handle)
+
+
+def read_yaml(path: str | os.PathLike[str], error: type[Exception], what: str = "") -> Any:
+    """The YAML document in file ``path``; a file that cannot be read or is not valid YAML
+    raises ``error`` with one line naming the path (and ``what`` it is) and the reason."""
+    try:
+        return load_yaml(path)
+    except OSError as exc:
+        raise error(f"{path}: cannot read{' ' + what if what else ''}: {exc.strerror}") from None
+    except yaml.YAMLError as exc:
+        raise error(f"{path}: not valid YAML: {exc}") from None

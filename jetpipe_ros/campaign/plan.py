@@ -61,7 +61,7 @@ import yaml
 
 from jetpipe_ros.campaign.errors import CampaignError
 from jetpipe_ros.campaign.signals import GENERATORS, samples
-from jetpipe_ros.fileio import load_yaml
+from jetpipe_ros.fileio import read_yaml
 from jetpipe_ros.model.params import SPECS
 from jetpipe_ros.package_data import share_file
 
@@ -435,13 +435,7 @@ def parse_campaign(doc: Any, source: str = "<memory>") -> Campaign:
 def load_campaign(path: str | Path) -> Campaign:
     """Read and validate a campaign YAML file (see the module docstring)."""
     path = Path(path)
-    try:
-        doc = load_yaml(path)
-    except OSError as exc:
-        raise CampaignError(f"{path}: cannot read: {exc.strerror}") from None
-    except yaml.YAMLError as exc:
-        raise CampaignError(f"{path}: not valid YAML: {exc}") from None
-    return parse_campaign(doc, str(path))
+    return parse_campaign(read_yaml(path, CampaignError), str(path))
 
 
 def default_campaign() -> Campaign:

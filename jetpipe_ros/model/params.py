@@ -17,7 +17,7 @@ from typing import Any
 
 import yaml
 
-from jetpipe_ros.fileio import load_yaml
+from jetpipe_ros.fileio import read_yaml
 from jetpipe_ros.model.chamber import chamber_volumes
 from jetpipe_ros.model.errors import ParameterError
 
@@ -421,10 +421,5 @@ def load_params(path: str | Path, node_name: str = NODE_NAME,
                 ignore: tuple[str, ...] = ()) -> ModelParams:
     """Read and validate a parameter YAML file; errors name the file and the parameter."""
     path = Path(path)
-    try:
-        tree = load_yaml(path)
-    except OSError as exc:
-        raise ParameterError(f"{path}: cannot read parameter file: {exc.strerror}") from exc
-    except yaml.YAMLError as exc:
-        raise ParameterError(f"{path}: not valid YAML: {exc}") from exc
+    tree = read_yaml(path, ParameterError, "parameter file")
     return params_from_tree(tree or {}, str(path), node_name, ignore)
