@@ -239,7 +239,13 @@ def simulate(params: ModelParams, u: np.ndarray, f_load: np.ndarray | float = 0.
     Row k of the result is the state at t_k = k dt, before command ``u[k]`` acts; ``u[k]`` is
     held over [t_k, t_k+1). The result has ``len(u)`` rows.
     """
-    act = Actuator(params)
+    return replay_command(Actuator(params), u, f_load)
+
+
+def replay_command(act: Any, u: np.ndarray, f_load: np.ndarray | float = 0.0) -> Trace:
+    """Run a fresh actuator ``act`` (the model's :class:`Actuator`, or anything with its
+    ``outputs()``, ``run(u, f_load)`` and ``constants.u_limit``, e.g. the plant) through a
+    command sequence [V] and load [N]: row k is the state at t_k, before ``u[k]`` acts."""
     u = np.asarray(u, dtype=float)
     if u.ndim != 1 or u.size == 0:
         raise ValueError("command must be a non-empty 1-D sequence")

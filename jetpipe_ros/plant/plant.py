@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from jetpipe_ros.model.actuator import REGULATOR_KEYS
+from jetpipe_ros.model.actuator import REGULATOR_KEYS, replay_command
 from jetpipe_ros.model import ModelParams, Trace
 from jetpipe_ros.model import kernel as k
 from jetpipe_ros.model.chamber import chamber_volumes
@@ -162,14 +162,4 @@ class Plant:
 def simulate(spec: PlantSpec, u: np.ndarray, f_load: np.ndarray | float = 0.0) -> Trace:
     """Replay a command sequence through a fresh plant, as :func:`jetpipe_ros.model.simulate`
     does through the model: row k is the state at t_k = k dt, before ``u[k]`` acts."""
-    plant = Plant(spec)
-    u = np.asarray(u, dtype=float)
-    if u.ndim != 1 or u.size == 0:
-        raise ValueError("command must be a non-empty 1-D sequence")
-    fl = np.broadcast_to(np.asarray(f_load, dtype=float), u.shape)
-    rows = np.empty((u.size, k.N_OUT))
-    rows[0] = plant.outputs()
-    if u.size > 1:
-        rows[1:] = plant.run(u[:-1], fl[:-1])
-    rows[:, k.OUT_U] = np.clip(u, -plant.constants.u_limit, plant.constants.u_limit)
-    return Trace.from_rows(rows)
+    return replay_command(Plant(spec), u, f_load)
