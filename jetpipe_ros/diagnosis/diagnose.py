@@ -30,7 +30,7 @@ from jetpipe_ros.diagnosis.alignment import Alignment, align
 from jetpipe_ros.diagnosis.calibration import CALIBRATION
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate, effect_of
 from jetpipe_ros.diagnosis.cluster import Cluster
-from jetpipe_ros.diagnosis.data import SIGNALS, Prepared, prepare, swapped
+from jetpipe_ros.diagnosis.data import Prepared, prepare, swapped
 from jetpipe_ros.diagnosis.fit import BUDGET, Fit, stacked, uncertainty
 from jetpipe_ros.diagnosis.jobs import Fitter, Job
 from jetpipe_ros.diagnosis.localize import by_regime, frequency_response, position_error_pct
@@ -39,7 +39,8 @@ from jetpipe_ros.diagnosis.noise_floor import calibrate, twin
 from jetpipe_ros.diagnosis.separation import (adopt, separating_experiment, stand_ins,
                                               words)
 from jetpipe_ros.diagnosis.prediction import HORIZON, persistence, predict
-from jetpipe_ros.diagnosis.score import METRIC, Score, predict_all, score, window_errors
+from jetpipe_ros.diagnosis.score import (METRIC, Score, difference_gap, predict_all, score,
+                                         window_errors)
 from jetpipe_ros.diagnosis.verdict import (NOISE_GAP, Ranked, Settled, decide, needs_pairs,
                                            paired_t, rank, settle)
 from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError
@@ -238,17 +239,9 @@ def visibility(prepared: Prepared, nominal: ModelParams, base_preds, cand: Candi
     experiments (the gap metric of its noise-free predictions against the nominal model's).
     Below :data:`verdict.NOISE_GAP` it could not show beyond noise."""
     preds = predict_all(cand.apply(nominal, dict(cand.typical)), prepared, None)
-    num = []
-    for s in SIGNALS:
-        d, c = 0.0, 0
-        for rec, a, b in zip(prepared.records, preds, base_preds):
-            if s in rec.signals():
-                m = a.free
-                d += float(np.sum((a.signal(s)[m] - b.signal(s)[m]) ** 2))
-                c += int(m.sum())
-        if c:
-            num.append(d / c / prepared.scale[s] ** 2)
-    return 100.0 * float(np.sqrt(np.mean(num))) if num else 0.0
+    return difference_gap(((s, a.signal(s)[a.free] - b.signal(s)[a.free])
+                           for rec, a, b in zip(prepared.records, preds, base_preds)
+                           for s in rec.signals()), prepared.scale)
 
 
 def subsystem_gaps(prepared: Prepared, nominal: ModelParams) -> dict:

@@ -15,7 +15,7 @@ number of samples.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -63,6 +63,20 @@ class Score:
     def to_json(self) -> dict:
         """Per-signal gap [%] and the total."""
         return {"gap": self.gap, **{s: self.signal_gap(s) for s in self.mse}}
+
+
+def difference_gap(differences: Iterable[tuple[str, np.ndarray]],
+                   scale: Mapping[str, float]) -> float:
+    """The gap metric [%] between two noise-free responses (nothing to remove for noise): the
+    RMS over signals of each signal's mean square difference over its scale. ``differences``
+    are (signal, differences [m or Pa]) pairs, several per signal (one per experiment)."""
+    sums: dict[str, float] = {}
+    counts: dict[str, int] = {}
+    for s, d in differences:
+        sums[s] = sums.get(s, 0.0) + float(np.sum(d ** 2))
+        counts[s] = counts.get(s, 0) + d.size
+    per_signal = [sums[s] / counts[s] / scale[s] ** 2 for s in sums if counts[s]]
+    return 100.0 * float(np.sqrt(np.mean(per_signal))) if per_signal else 0.0
 
 
 def effective_samples(s: Score, dt: float) -> float:

@@ -52,6 +52,7 @@ from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.diagnosis.cluster import Cluster
 from jetpipe_ros.diagnosis.data import prepare
 from jetpipe_ros.diagnosis.diagnose import diagnose
+from jetpipe_ros.diagnosis.score import difference_gap
 from jetpipe_ros.diagnosis.verdict import NOISE_GAP
 from jetpipe_ros.fileio import to_json, write_files, write_text
 from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError, simulate
@@ -281,20 +282,18 @@ def signature(a: ModelParams | PlantSpec, b: ModelParams | PlantSpec,
     spread in the dataset) of their open-loop responses. Below :data:`verdict.NOISE_GAP` the
     difference cannot show beyond noise, and ``none`` is a right answer."""
     ds = read_dataset(dataset_dir)
-    scale = prepare(ds).scale
-    sums = {s: 0.0 for s in ("y", "p1", "p2")}
-    counts = {s: 0 for s in sums}
+    differences = []
     for entry, exp in ds:
         changes = {"mechanics.locked": entry.locked, "sensors.noise": False}
-        ta, tb = (simulate_plant(m.with_values(changes), exp.u) if isinstance(m, PlantSpec)
-                  else simulate(m.with_values(changes), exp.u) for m in (a, b))
+        ta, tb = (simulate_plant(m.with_params(m.params.at_sample_time(exp.dt))
+                                 .with_values(changes), exp.u) if isinstance(m, PlantSpec)
+                  else simulate(m.at_sample_time(exp.dt).with_values(changes), exp.u)
+                  for m in (a, b))
         for s in (("p1", "p2") if entry.locked else ("y", "p1", "p2")):
-            if getattr(exp, s) is None:  # not measured: cannot show there
-                continue
-            d = getattr(ta, f"{s}_meas") - getattr(tb, f"{s}_meas")  # as the sensors read them
-            sums[s] += float(np.sum((d / scale[s]) ** 2))
-            counts[s] += d.size
-    return 100.0 * float(np.sqrt(np.mean([sums[s] / counts[s] for s in sums if counts[s]])))
+            if getattr(exp, s) is not None:  # not measured: cannot show there
+                # as the sensors read them
+                differences.append((s, getattr(ta, f"{s}_meas") - getattr(tb, f"{s}_meas")))
+    return difference_gap(differences, prepare(ds).scale)
 
 
 def record(truth: ModelParams | PlantSpec, root: Path, seed: int,
