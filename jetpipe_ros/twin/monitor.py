@@ -117,6 +117,7 @@ class Twin:
         self.paused_since: float | None = None  #: stamp after which data went missing [s]
         self.t_last: float | None = None  #: latest stamp used [s]
         self._h = _Horizon(period)
+        self._meas = np.empty(3)
         self._sigmas: deque[np.ndarray] = deque(maxlen=self.gaps.history)
 
     @property
@@ -134,10 +135,12 @@ class Twin:
                                      for x in (t, u, f_load, y, p1, p2)))
         out = np.full((cols[0].size, 3), np.nan)
         for k in range(cols[0].size):
-            out[k] = self._one(*(float(c[k]) for c in cols))
+            out[k] = self.feed_one(*(float(c[k]) for c in cols))
         return out
 
-    def _one(self, t: float, u: float, f: float, y: float, p1: float, p2: float) -> np.ndarray:
+    def feed_one(self, t: float, u: float, f: float, y: float, p1: float,
+                 p2: float) -> np.ndarray:
+        """:meth:`feed` for one sample given as floats; the predicted y, p1, p2 (3,)."""
         nan3 = np.full(3, np.nan)
         if not (math.isfinite(t) and math.isfinite(u) and math.isfinite(f)):
             self.counters.late += 1
@@ -156,7 +159,9 @@ class Twin:
                         self._sample(self.t_last + dt, u, f, np.full(3, np.nan))
                         self.counters.filled += 1
         self.counters.samples += 1
-        return self._sample(t, u, f, np.array([y, p1, p2]))
+        meas = self._meas
+        meas[0], meas[1], meas[2] = y, p1, p2
+        return self._sample(t, u, f, meas)
 
     def _pause(self, t: float) -> None:
         """A gap too long to fill: score what the horizon holds, restart at the next sample."""
@@ -174,16 +179,15 @@ class Twin:
                 self._close()
             h.segment_start = self.stepper.index < 0
             h.start = self.stepper.snapshot()
-        pred, free = self.stepper.feed(np.array([t]), np.array([u]), np.array([f]),
-                                       meas[None, :])
+        pred, free = self.stepper.step_one(t, u, f, meas)
         i = h.n
         h.t[i], h.u[i], h.f[i] = t, u, f
-        h.meas[i], h.pred[i], h.free[i] = meas, pred[0], free[0]
+        h.meas[i], h.pred[i], h.free[i] = meas, pred, free
         h.n += 1
         self.t_last = t
-        if free[0] and self.paused_since is not None:
+        if free and self.paused_since is not None:
             self.paused_since = None
-        return pred[0]
+        return pred
 
     def _close(self) -> None:
         """Score the horizon in progress against its noise floor and judge the window."""

@@ -107,6 +107,20 @@ class Stepper:
             row[1 + chamber] = line_end(t, p)[0]
         return row
 
+    def step_one(self, t: float, u: float, f_load: float,
+                 meas: np.ndarray) -> tuple[np.ndarray, bool]:
+        """:meth:`feed` for one sample (``meas``: y, p1, p2 (3,)); the prediction (3,) and
+        whether it is free. Outside the warm-up the model steps alone (the kernel gives the same
+        bits one sample at a time as in a block)."""
+        i = self.index
+        if i >= 0 and (i % self.period) >= self.lead and (i + 1) % self.period >= self.lead:
+            out = self.act.step(u, f_load)
+            self.index = i + 1
+            return out[OUT_COLUMNS], True
+        pred, free = self.feed(np.array([t]), np.array([u]), np.array([f_load]),
+                               meas[None, :])
+        return pred[0], bool(free[0])
+
     def feed(self, t: np.ndarray, u: np.ndarray, f_load: np.ndarray,
              meas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Step through samples that all belong to one horizon (the first may start it).
