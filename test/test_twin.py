@@ -105,3 +105,29 @@ def test_gaps_in_the_measurements_fill_pause_and_drop():
 def test_bad_settings_name_the_setting():
     with pytest.raises(ValueError, match="twin setting warmup"):
         Settings(warmup=2.0)
+
+
+def test_capture_keeps_the_latest_samples_and_writes_them_as_a_dataset(tmp_path):
+    from jetpipe_ros.dataset import read_dataset
+    from jetpipe_ros.twin.capture import Recent, write_capture
+
+    rows = hardware(ModelParams(), 12.0)
+    recent = Recent(9.0, 0.001)
+    for row in rows:
+        recent.add(row)
+    kept = recent.snapshot()
+    assert np.array_equal(kept, rows[-9000:])
+    kept[100, 4] = np.nan  # a pressure message lost: that row is left out
+    write_capture(kept, tmp_path / "ds")
+    ds = read_dataset(tmp_path / "ds")
+    assert [e.role for e, _ in ds] == ["train", "train", "holdout"]
+    assert ds.entries[0].extra["received_rows"] == 9000
+    assert ds.entries[0].extra["incomplete_rows"] == 1
+    first = ds.experiments[0]
+    # Row k: the measurements at t_k with the command applied over [t_k, t_k+1), which the
+    # received rows carry on the next stamp.
+    assert first.y[:100] == pytest.approx(rows[3000:3100, 3], rel=1e-8)
+    assert first.u[:100] == pytest.approx(rows[3001:3101, 1], rel=1e-8, abs=1e-12)
+    # 8,999 rows with a command, 8,998 of them whole; the reader fills the one left out.
+    assert [exp.t.size for _, exp in ds] == [3000, 2999, 3000]
+    assert np.flatnonzero(~first.valid).tolist() == [100]
