@@ -20,7 +20,7 @@ LAYERS = (
     ("identify", "diagnosis", "bag"),  # the paper's procedures; the gap diagnosis; bags
     ("twin",),  # the model beside the hardware: live gap, capture, trend
     ("nodes",),  # ROS 2 shells
-    ("cli", "showcase"),  # entry points
+    ("cli", "showcase", "showcase_twin"),  # entry points
 )
 LAYER = {name: i for i, names in enumerate(LAYERS) for name in names}
 #: Top-level packages of ROS 2 itself (rosbags and mcap are plain Python libraries).
