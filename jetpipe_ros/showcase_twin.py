@@ -21,9 +21,8 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any
-
 from jetpipe_ros import fileio
+from jetpipe_ros.nodes.gap_watch import Watch
 from jetpipe_ros.package_data import share_file
 
 NAMESPACE = "/showcase_twin"
@@ -42,67 +41,6 @@ def start(name: str, logs: Path, ros_args: list[str]) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", f"jetpipe_ros.nodes.{name}", "--ros-args",
                              "-r", f"__ns:={NAMESPACE}", *ros_args],
                             stdout=log, stderr=subprocess.STDOUT, env=env)
-
-
-class Watch:
-    """This script's ROS node: position steps for the controller, the monitor's statuses."""
-
-    def __init__(self) -> None:
-        import numpy as np
-        import rclpy
-        from diagnostic_msgs.msg import DiagnosticArray
-        from rclpy.experimental import EventsExecutor
-
-        from jetpipe_ros.nodes import interface
-
-        rclpy.init()
-        self.node = rclpy.create_node("showcase_twin", namespace=NAMESPACE)
-        self.status: dict[str, Any] = {}
-        self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 10)
-        pub = interface.publisher(self.node, "position_setpoint")
-        msg = interface.topic("position_setpoint").message_class()()
-        rng = np.random.default_rng(11)
-
-        def step() -> None:
-            msg.data = float(rng.uniform(-0.018, 0.018))
-
-        self.node.create_timer(0.35, step)
-        self.node.create_timer(0.01, lambda: pub.publish(msg))
-        self.executor = EventsExecutor()
-        self.executor.add_node(self.node)
-
-    def _on_diag(self, msg: Any) -> None:
-        for s in msg.status:
-            if s.name.startswith(f"{NAMESPACE}/gap_monitor: "):
-                self.status[s.name.rsplit(": ", 1)[1]] = (
-                    s.level[0], s.message, {kv.key: kv.value for kv in s.values})
-
-    def spin(self, seconds: float) -> None:
-        deadline = time.monotonic() + seconds
-        while time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.05)
-
-    def set_parameters(self, node: str, values: dict[str, Any]) -> None:
-        from rclpy.parameter import Parameter
-        from rclpy.parameter_client import AsyncParameterClient
-
-        client = AsyncParameterClient(self.node, f"{NAMESPACE}/{node}")
-        if not client.wait_for_services(10.0):
-            raise RuntimeError(f"{node}: no parameter service")
-        future = client.set_parameters([Parameter(k, value=v) for k, v in values.items()])
-        deadline = time.monotonic() + 10.0
-        while not future.done() and time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.05)
-        results = future.result().results if future.done() else []
-        if not results or not all(r.successful for r in results):
-            raise RuntimeError(f"{node}: parameters refused: {results}")
-
-    def close(self) -> None:
-        import rclpy
-
-        self.executor.shutdown()
-        self.node.destroy_node()
-        rclpy.try_shutdown()
 
 
 def _line(watch: Watch, t0: float) -> tuple[int, str]:
@@ -127,7 +65,7 @@ def run(out: Path) -> int:
     }
     print("Stand-in hardware: actuator_sim (nominal model, sensor noise) under the controller; "
           "gap_monitor runs the nominal model beside it")
-    watch = Watch()
+    watch = Watch(NAMESPACE)
     try:
         t0 = time.monotonic()
         level = 3
