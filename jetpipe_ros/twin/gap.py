@@ -115,11 +115,6 @@ class GapWindow:
         if score.count >= MIN_SCORED:
             self.scores[signal].append(score)
 
-    def clear(self) -> None:
-        """Forget every score (the model changed)."""
-        for q in self.scores.values():
-            q.clear()
-
     def judge(self) -> list[SignalGap]:
         """The gap and level of each signal with enough history."""
         return [g for g in (self._judge(s) for s in SIGNALS) if g is not None]

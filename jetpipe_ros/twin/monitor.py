@@ -66,7 +66,7 @@ class Counters:
     """What happened to the inputs."""
 
     samples: int = 0  #: samples received and used
-    late: int = 0  #: samples dropped: stamp not after the previous one
+    late: int = 0  #: samples dropped: stamp not after the last one, or a non-finite input
     filled: int = 0  #: lost samples filled (short gaps)
     paused: int = 0  #: gaps long enough to pause the comparison
     paused_s: float = 0.0  #: time missing in those gaps [s]
@@ -155,7 +155,7 @@ class Twin:
                 if (steps - 1) * dt > self.settings.max_gap + 0.5 * dt:
                     self._pause(t)
                 else:
-                    for k in range(1, steps):
+                    for _ in range(1, steps):
                         self._sample(self.t_last + dt, u, f, np.full(3, np.nan))
                         self.counters.filled += 1
         self.counters.samples += 1
