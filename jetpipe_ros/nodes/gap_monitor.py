@@ -129,6 +129,7 @@ class GapMonitor(Node):
         self._dropped = 0  # samples given up: no command
         self._incomplete = 0  # samples given to the twin with a measurement missing
         self._late_messages = 0
+        self._failures = 0  # messages whose handling failed (logged)
         self._last_wall: float | None = None  # monotonic time of the latest sample [s]
         self._error_since: float | None = None  # monotonic time the gap became ERROR [s]
         self._captured_this_error = False
@@ -140,7 +141,7 @@ class GapMonitor(Node):
         for name in PARTS:
             msg_class = interface.topic(name).message_class()
             self.create_subscription(msg_class, name,
-                                     lambda msg, name=name: self._on_message(name, msg), QOS)
+                                     lambda msg, name=name: self._guarded(name, msg), QOS)
         sensor_qos = interface.topic("joint_states").qos.profile()
         self._pub_joint = self.create_publisher(JointState, "twin/joint_states", sensor_qos)
         self._pub_p = [self.create_publisher(FluidPressure, f"twin/chamber{i}/pressure",
@@ -181,6 +182,16 @@ class GapMonitor(Node):
 
     # -- samples ----------------------------------------------------------------------------
 
+    def _guarded(self, name: str, msg: Any) -> None:
+        """:meth:`_on_message`, a failure (a publish the middleware refuses) logged and
+        counted, never raised into the executor, which would end the node."""
+        try:
+            self._on_message(name, msg)
+        except Exception as exc:  # noqa: BLE001 - the monitor must outlive any one sample
+            self._failures += 1
+            self.get_logger().error(f"sample at {name} not handled: {exc}",
+                                    throttle_duration_sec=WARN_PERIOD)
+
     def _on_message(self, name: str, msg: Any) -> None:
         stamp = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
         if stamp <= self._last_ns:
@@ -202,12 +213,14 @@ class GapMonitor(Node):
         if row[5] == COMPLETE:
             self._flush(stamp)
         elif len(self._pending) > PENDING:
-            self._flush(min(self._pending))
+            self._flush(next(iter(self._pending)))  # the oldest: stamps come in order
 
     def _flush(self, upto: int) -> None:
         """Give the twin every pending sample up to stamp ``upto`` [ns], in order; one without
         its command is dropped (the twin fills it), one without a measurement has NaN there."""
-        for stamp in sorted(s for s in self._pending if s <= upto):
+        first = next(iter(self._pending))
+        stamps = [first] if first == upto else sorted(s for s in self._pending if s <= upto)
+        for stamp in stamps:
             row = self._pending.pop(stamp)
             if not math.isfinite(row[0]):
                 self._dropped += 1
@@ -241,6 +254,14 @@ class GapMonitor(Node):
     # -- diagnostics ------------------------------------------------------------------------
 
     def _tick(self) -> None:
+        try:
+            self._report()
+        except Exception as exc:  # noqa: BLE001 - as _guarded: log, go on
+            self.get_logger().error(f"diagnostics not published: {exc}",
+                                    throttle_duration_sec=WARN_PERIOD)
+
+    def _report(self) -> None:
+        """Auto capture when due; the statuses on /diagnostics."""
         now = time.monotonic()
         level = self.twin.level
         if level == Level.ERROR:
@@ -274,6 +295,7 @@ class GapMonitor(Node):
                        "samples without a measurement": str(self._incomplete),
                        "samples late": str(c.late),
                        "late messages": str(self._late_messages), "pauses": str(c.paused),
+                       "handling failures": str(self._failures),
                        "paused [s]": f"{c.paused_s:.3f}", "horizons scored": str(c.horizons),
                        "captures": str(self._captures)})
         status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
