@@ -35,6 +35,7 @@ setup(
             "controller = jetpipe_ros.nodes.controller:main",
             "id_recorder = jetpipe_ros.nodes.id_recorder:main",
             "composed_campaign = jetpipe_ros.nodes.composed_campaign:main",
+            "gap_monitor = jetpipe_ros.nodes.gap_monitor:main",
             "jetpipe = jetpipe_ros.cli:main",
         ],
     },

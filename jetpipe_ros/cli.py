@@ -26,6 +26,7 @@ COMMANDS = (
     "jetpipe_ros.bag.export",
     "jetpipe_ros.diagnosis.cli",
     "jetpipe_ros.identify.cli",
+    "jetpipe_ros.twin.cli",
 )
 
 

@@ -45,7 +45,8 @@ def workspace(tmp_path_factory) -> Path:
 
 def test_executables_and_data_installed(workspace):
     prefix = workspace / "install" / "jetpipe_ros"
-    for exe in ("actuator_sim", "controller", "id_recorder", "composed_campaign", "jetpipe"):
+    for exe in ("actuator_sim", "controller", "id_recorder", "composed_campaign", "gap_monitor",
+                "jetpipe"):
         assert os.access(prefix / "lib" / "jetpipe_ros" / exe, os.X_OK), exe
     share = prefix / "share" / "jetpipe_ros"
     for name in ("package.xml", "config/actuator.yaml", "msg_defs/topics.yaml"):

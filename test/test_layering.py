@@ -18,13 +18,14 @@ LAYERS = (
     ("campaign", "replay"),  # plans, signals, offline runner; replaying a CSV
     ("plant",),  # a stand-in for real hardware written apart from the model's effects
     ("identify", "diagnosis", "bag"),  # the paper's procedures; the gap diagnosis; bags
+    ("twin",),  # the model beside the hardware: live gap, capture, trend
     ("nodes",),  # ROS 2 shells
-    ("cli", "showcase"),  # entry points
+    ("cli", "showcase", "showcase_twin"),  # entry points
 )
 LAYER = {name: i for i, names in enumerate(LAYERS) for name in names}
 #: Top-level packages of ROS 2 itself (rosbags and mcap are plain Python libraries).
 ROS = {"rclpy", "std_msgs", "sensor_msgs", "rosgraph_msgs", "rcl_interfaces",
-       "builtin_interfaces", "ament_index_python"}
+       "builtin_interfaces", "ament_index_python", "diagnostic_msgs", "std_srvs"}
 
 
 def _imports(path: Path) -> list[str]:

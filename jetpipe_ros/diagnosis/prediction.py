@@ -58,7 +58,7 @@ def windows(n: int, dt: float, horizon: float = HORIZON, warmup: float = WARMUP)
     return held
 
 
-def _sensor_inverse(params: ModelParams, p_meas: np.ndarray, t: np.ndarray,
+def sensor_inverse(params: ModelParams, p_meas: np.ndarray, t: np.ndarray,
                     chamber: int) -> np.ndarray:
     """Pressure [Pa] in chamber 1 or 2 that the model's pressure sensor would read as
     ``p_meas``."""
@@ -97,7 +97,7 @@ def predict(params: ModelParams, rec: Record, dt: float, mode: str = "full",
     if rec.regulated:
         mode = "mechanics"
     y = rec.smooth["y"]
-    p1, p2 = (_sensor_inverse(params, rec.smooth[s], rec.t, i)
+    p1, p2 = (sensor_inverse(params, rec.smooth[s], rec.t, i)
               for i, s in ((1, "p1"), (2, "p2")))
     changes = {"mechanics.locked": rec.locked, "sensors.noise": False,
                **initial_state(params, y, p1, p2)}

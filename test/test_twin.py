@@ -1,0 +1,133 @@
+"""The twin core (jetpipe_ros.twin): the model following measured samples, its gap and levels."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from jetpipe_ros.model import ModelParams
+from jetpipe_ros.twin import Level, Settings, Twin
+from jetpipe_ros.twin.gap import MIN_HISTORY
+from jetpipe_ros.twin.stepper import line_end
+from twin_data import hardware
+
+LAG = {"effects.valve_lag.enabled": True, "effects.valve_lag.corner_frequency": 20.0}
+
+
+def _levels(twin: Twin, rows: np.ndarray) -> dict[int, dict[str, tuple[Level, float, float]]]:
+    """Per completed second: each judged signal's (level, gap %, z)."""
+    out = {}
+    for i in range(rows.shape[0]):
+        twin.feed(*rows[i])
+        if (i + 1) % 1000 == 0:
+            out[(i + 1) // 1000] = {g.signal: (g.level, g.gap, g.z) for g in twin.judged}
+    return out
+
+
+def test_line_end_recovers_value_and_slope_of_a_line():
+    t = np.arange(21) * 1e-3
+    value, slope = line_end(t, 0.01 + 0.2 * t)
+    assert value == pytest.approx(0.01 + 0.2 * 0.020)
+    assert slope == pytest.approx(0.2)
+    assert line_end(t[:2], np.array([1.0, 2.0])) == (2.0, 0.0)
+
+
+def test_nominal_model_on_nominal_hardware_is_ok_and_predicts_closely():
+    rows = hardware(ModelParams(), 14.0)
+    twin = Twin(ModelParams())
+    levels = _levels(twin, rows)
+    judged = {s: v for s, v in levels.items() if v}
+    assert min(judged) == MIN_HISTORY + 1  # horizons 0-1 ... 5-6 s: judged from 6 s on
+    for second, signals in judged.items():
+        assert set(signals) == {"y", "p1", "p2"}
+        for signal, (level, gap, z) in signals.items():
+            assert level == Level.OK, (second, signal, gap, z)
+            assert abs(z) < 3.0 and gap < 1.5
+    # What noise explains is what the sensors' noise is: 15 um on y, 500 Pa on p over spreads
+    # of several mm and tenths of bar; the model explains the rest.
+    for g in twin.judged:
+        assert g.mse == pytest.approx(g.floor, rel=0.1)
+    y = next(g for g in twin.judged if g.signal == "y")
+    assert 15e-6 / y.scale < np.sqrt(y.floor) < 3 * 15e-6 / y.scale
+    assert twin.counters.samples == 14000 and twin.counters.horizons == 13
+
+
+def test_valve_lag_in_the_hardware_is_an_error_on_every_signal():
+    rows = hardware(ModelParams().with_effect("valve_lag", corner_frequency=20.0), 7.0)
+    twin = Twin(ModelParams())
+    levels = _levels(twin, rows)
+    assert levels[6] == {s: (Level.ERROR, pytest.approx(levels[6][s][1]),
+                             pytest.approx(levels[6][s][2])) for s in ("y", "p1", "p2")}
+    for level, gap, z in levels[6].values():
+        assert gap > 3.0 and z > 30.0
+
+
+def test_effect_switched_on_mid_run_is_flagged_within_two_horizons():
+    rows = hardware(ModelParams(), 14.0, switch=(10.0, LAG))
+    levels = _levels(Twin(ModelParams()), rows)
+    for second in range(6, 11):
+        assert {lv for lv, _, _ in levels[second].values()} == {Level.OK}, second
+    first_error = min(s for s, v in levels.items()
+                      if any(lv == Level.ERROR for lv, _, _ in v.values()))
+    assert first_error <= 12
+    assert all(lv == Level.ERROR for lv, _, _ in levels[14].values())
+
+
+def test_the_augmented_model_matches_the_lagging_hardware():
+    lagging = ModelParams().with_effect("valve_lag", corner_frequency=20.0)
+    levels = _levels(Twin(lagging), hardware(lagging, 7.0))
+    assert {lv for lv, _, _ in levels[7].values()} == {Level.OK}
+
+
+def test_gaps_in_the_measurements_fill_pause_and_drop():
+    rows = hardware(ModelParams(), 9.0)
+    keep = np.ones(rows.shape[0], dtype=bool)
+    keep[3000:3005] = False  # 5 ms lost: filled, never compared
+    keep[5500:5700] = False  # 0.2 s lost: the comparison pauses and restarts
+    data = rows[keep]
+    data = np.insert(data, 100, data[99], axis=0)  # a repeated stamp: dropped
+    twin = Twin(ModelParams())
+    pred = twin.feed(*data.T)
+    c = twin.counters
+    assert (c.late, c.filled, c.paused) == (1, 5, 1)
+    assert c.paused_s == pytest.approx(0.2)
+    assert c.samples == 9000 - 205
+    after = np.flatnonzero(data[:, 0] == rows[5700, 0])[0]
+    assert np.isnan(pred[after]).all()  # the new segment's first sample: nothing steps into it
+    assert np.isfinite(pred[after + 1]).all()
+    # 0-5.5 s: five whole horizons and one of 0.5 s; 5.7-9 s: three of 1, 1 and 1.3 s ... as
+    # far as they went: 5.7-6.7, 6.7-7.7, 7.7-8.7 closed (8.7-9 s still open)
+    assert c.horizons == 6 + 3
+    assert {g.level for g in twin.judged} == {Level.OK}
+    assert twin.paused_since is None
+
+
+def test_bad_settings_name_the_setting():
+    with pytest.raises(ValueError, match="twin setting warmup"):
+        Settings(warmup=2.0)
+
+
+def test_capture_keeps_the_latest_samples_and_writes_them_as_a_dataset(tmp_path):
+    from jetpipe_ros.dataset import read_dataset
+    from jetpipe_ros.twin.capture import Recent, write_capture
+
+    rows = hardware(ModelParams(), 12.0)
+    recent = Recent(9.0, 0.001)
+    for row in rows:
+        recent.add(row)
+    kept = recent.snapshot()
+    assert np.array_equal(kept, rows[-9000:])
+    kept[100, 4] = np.nan  # a pressure message lost: that row is left out
+    write_capture(kept, tmp_path / "ds")
+    ds = read_dataset(tmp_path / "ds")
+    assert [e.role for e, _ in ds] == ["train", "train", "holdout"]
+    assert ds.entries[0].extra["received_rows"] == 9000
+    assert ds.entries[0].extra["incomplete_rows"] == 1
+    first = ds.experiments[0]
+    # Row k: the measurements at t_k with the command applied over [t_k, t_k+1), which the
+    # received rows carry on the next stamp.
+    assert first.y[:100] == pytest.approx(rows[3000:3100, 3], rel=1e-8)
+    assert first.u[:100] == pytest.approx(rows[3001:3101, 1], rel=1e-8, abs=1e-12)
+    # 8,999 rows with a command, 8,998 of them whole; the reader fills the one left out.
+    assert [exp.t.size for _, exp in ds] == [3000, 2999, 3000]
+    assert np.flatnonzero(~first.valid).tolist() == [100]
