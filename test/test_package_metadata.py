@@ -17,6 +17,7 @@ REPO = Path(__file__).resolve().parent.parent
 ROSDEP_KEYS = {
     "rclpy": "rclpy", "rcl_interfaces": "rcl_interfaces", "std_msgs": "std_msgs",
     "sensor_msgs": "sensor_msgs", "rosgraph_msgs": "rosgraph_msgs",
+    "diagnostic_msgs": "diagnostic_msgs", "std_srvs": "std_srvs",
     "ament_index_python": "ament_index_python",
     "numpy": "python3-numpy", "scipy": "python3-scipy", "yaml": "python3-yaml",
     "matplotlib": "python3-matplotlib", "sklearn": "python3-sklearn", "numba": "python3-numba",
