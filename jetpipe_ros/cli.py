@@ -25,6 +25,7 @@ COMMANDS = (
     "jetpipe_ros.bag.export",
     "jetpipe_ros.diagnosis.cli",
     "jetpipe_ros.identify.cli",
+    "jetpipe_ros.identify.seal_cli",
 )
 
 

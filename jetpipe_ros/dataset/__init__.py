@@ -1,9 +1,10 @@
-"""Datasets on disk (DESIGN.md section 5): experiment CSVs and the dataset.yaml index."""
+"""Datasets on disk: experiment CSVs and the dataset.yaml index; friction-rig records."""
 
 from jetpipe_ros.dataset.dataset import Dataset, Entry, read_dataset, read_index, write_dataset
 from jetpipe_ros.dataset.errors import DatasetError
+from jetpipe_ros.dataset.friction_rig import RigRecord, read_records
 from jetpipe_ros.dataset.experiment import (COMPLETE, MEASURED, REQUIRED, Experiment,
                                             read_experiment, write_experiment)
 
 __all__ = ["COMPLETE", "MEASURED", "REQUIRED", "Dataset", "DatasetError", "Entry", "Experiment",
-           "read_dataset", "read_experiment", "read_index", "write_dataset", "write_experiment"]
+           "RigRecord", "read_dataset", "read_records", "read_experiment", "read_index", "write_dataset", "write_experiment"]
