@@ -7,4 +7,5 @@ from jetpipe_ros.dataset.experiment import (COMPLETE, MEASURED, REQUIRED, Experi
                                             read_experiment, write_experiment)
 
 __all__ = ["COMPLETE", "MEASURED", "REQUIRED", "Dataset", "DatasetError", "Entry", "Experiment",
-           "RigRecord", "read_dataset", "read_records", "read_experiment", "read_index", "write_dataset", "write_experiment"]
+           "RigRecord", "read_dataset", "read_experiment", "read_index", "read_records",
+           "write_dataset", "write_experiment"]
