@@ -142,3 +142,26 @@ def test_records_yaml_errors_name_the_field(tmp_path, entry, message):
     (tmp_path / "records.yaml").write_text("records:\n  - file: PK_1bar.csv\n" + entry)
     with pytest.raises(DatasetError, match=message):
         read_records(tmp_path)
+
+
+def test_kernel_maxwell_slip_holds_a_force_below_breakaway_by_presliding():
+    """At rest under a force below the breakaway, the kernel's Maxwell-slip elements deflect
+    elastically or slip: f = |F_S| mean(min(y / delta_i, 1)), the friction balancing f."""
+    from jetpipe_ros.model import ModelParams
+    from jetpipe_ros.model.friction import friction_parameters
+
+    p1, p2 = 4.2e5, 4.18e5
+    params = ModelParams({"chamber.regulated": True, "chamber.initial_pressure_1": p1,
+                          "chamber.initial_pressure_2": p2}).with_effect(
+        "friction_dynamics", form="maxwell_slip", presliding_displacement=5e-4,
+        presliding_spread=0.1, elements=3)
+    trace = simulate(params, np.zeros(2000))
+    force = params["chamber.piston_area"] * (p1 - p2)
+    f_s = friction_parameters(np.array([[params[f"friction.{ph}.{q}"] for q in (
+        "breakaway", "stribeck_velocity", "viscous", "coulomb")] for ph in ("entry", "exit")]),
+        1.0, p1, p2)[0]
+    assert force < f_s
+    slips = element_slips(5e-4, 0.1, 3)
+    assert slips[0] < trace.y[-1] < slips[1]  # the stiffest element slips, the others hold
+    assert f_s * np.mean(np.minimum(trace.y[-1] / slips, 1.0)) == pytest.approx(force, rel=0.01)
+    assert trace.friction[-1] == pytest.approx(force, rel=0.01)

@@ -54,7 +54,7 @@ DIRECTIONS = ("exit", "entry")
 
 #: Per direction: level a [N], slope b [N/bar], ratio r = F_S/F_C, v_s [m/s], F_v [N s/m].
 _PER_DIRECTION = (("level", -1e3, 1e4), ("slope", -1e3, 1e3), ("ratio", 0.2, 2.0),
-                  ("stribeck_velocity", 1e-4, 0.05), ("viscous", 0.0, 1e4))
+                  ("stribeck_velocity", 1e-4, 0.01), ("viscous", 0.0, 1e4))
 #: Dynamic parameters, fitted as log10: sigma_0 [N/m]; delta [m], spread [-].
 _DYNAMIC = {"lugre": (("bristle_stiffness", 2.0, 8.0),),
             "maxwell_slip": (("presliding_displacement", -5.0, math.log10(5e-3)),

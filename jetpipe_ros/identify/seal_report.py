@@ -107,7 +107,7 @@ def loop_figure(res: SealResult, preps: list[Prepared]) -> Any:
             row[1].plot(since[m] * 1e3, model[m], ".", ms=1.5, color=colour, label=form)
         row[0].set_xlabel("velocity [mm/s]")
         row[1].set_xlabel("displacement since reversal [mm] (signed as the motion)")
-        row[1].set_xlim(-6, 6)
+        row[1].set_xlim(-3, 3)
         for ax in row:
             ax.set_ylabel("friction [N]")
             ax.set_title(label, fontsize=9)
