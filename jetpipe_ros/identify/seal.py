@@ -17,7 +17,8 @@ from a few physically bounded parameters per direction of motion (exit: v > 0, e
 
 ``coulomb_viscous`` (r = 1) and ``static`` (Eq. 18) have no state. Records of one seal (field
 ``seal``) are fitted each on its first part (``split``), as the paper fits each test, and
-combined over pressure into the seal's planes (:func:`combine`); a ``role: holdout`` record is
+combined over pressure into the seal's planes (:func:`combine`, then refined by a joint fit of
+the seal's records); a ``role: holdout`` record is
 not fitted and is predicted by the seal's planes. Every record is judged on its held-out part,
 on moving samples (speed above :data:`MIN_SPEED`, the velocity's window clear of the logger's
 gaps). The form selected is the one with the lowest median held-out NRMSE.
@@ -51,6 +52,8 @@ ELEMENTS = 3
 #: Records of one seal whose mean pressures span less than this [bar] share one pressure.
 MIN_PRESSURE_SPAN = 0.5
 DIRECTIONS = ("exit", "entry")
+#: Evaluations of the joint fit of a seal's records that refines their combined fits.
+SEAL_NFEV = 40
 
 #: Per direction: level a [N], slope b [N/bar], ratio r = F_S/F_C, v_s [m/s], F_v [N s/m].
 _PER_DIRECTION = (("level", -1e3, 1e4), ("slope", -1e3, 1e3), ("ratio", 0.2, 2.0),
@@ -202,11 +205,14 @@ def _start(form: str, preps: list[Prepared], attempt: int) -> np.ndarray:
     return np.array(theta)
 
 
-def fit_form(form: str, preps: list[Prepared], what: str, attempts: int = 3) -> FormFit:
+def fit_form(form: str, preps: list[Prepared], what: str, attempts: int = 3,
+             start: FormFit | None = None, max_nfev: int = 200) -> FormFit:
     """Fit ``form`` to the training samples of one seal's prepared records (least squares on
     the friction [N]); a start outside the bounds is clipped into them, and a failed or
-    non-finite fit retried from another start. DatasetError naming the seal's records if no
-    attempt succeeds (``what`` names them: the record or the seal)."""
+    non-finite fit retried from another start. The first attempt starts from ``start`` if
+    given (the seal's records' fits combined), the others from the data's levels.
+    DatasetError naming the seal's records if no attempt succeeds (``what`` names them: the
+    record or the seal)."""
     lo, hi = _bounds(form)
     free = np.ones(lo.size, dtype=bool)
     pressures = [float(np.mean(p.p1[p.train])) * 1e-5 for p in preps if p.train.any()]
@@ -223,7 +229,13 @@ def fit_form(form: str, preps: list[Prepared], what: str, attempts: int = 3) -> 
     trained = [p for p in preps if p.train.any()]
     error = "no attempt"
     for attempt in range(attempts):
-        held = np.clip(_start(form, trained, attempt), lo, hi)
+        if start is not None and attempt == 0:
+            dynamic = {q for q, _, _ in _DYNAMIC.get(form, ())}
+            held = np.array([math.log10(start.values[n]) if n in dynamic else start.values[n]
+                             for n in names])
+        else:
+            held = _start(form, trained, attempt)
+        held = np.clip(held, lo, hi)
 
         def residual(x: np.ndarray, held: np.ndarray = held) -> np.ndarray:
             theta = held.copy()
@@ -233,7 +245,7 @@ def fit_form(form: str, preps: list[Prepared], what: str, attempts: int = 3) -> 
 
         try:
             sol = optimize.least_squares(residual, held[free], bounds=(lo[free], hi[free]),
-                                         x_scale="jac", max_nfev=200)
+                                         x_scale="jac", max_nfev=max_nfev)
         except (ValueError, FloatingPointError) as exc:
             error = str(exc)
             continue
@@ -347,6 +359,10 @@ def identify_seal(seal: str, records: list[RigRecord], split: float = 0.5) -> Se
         per_record[form] = own
         seal_fits[form] = combine(form, list(own.values()),
                                   [float(np.mean(p.p1[p.train])) for p in trained])
+        if len(trained) > 1:
+            # One set of planes for all the seal's pressures, refined from the combination.
+            seal_fits[form] = fit_form(form, trained, seal or "seal", start=seal_fits[form],
+                                       max_nfev=SEAL_NFEV)
         judged[form] = {}
         for p in preps:
             if p.test.sum() >= 10:
