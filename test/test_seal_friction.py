@@ -165,3 +165,14 @@ def test_kernel_maxwell_slip_holds_a_force_below_breakaway_by_presliding():
     assert slips[0] < trace.y[-1] < slips[1]  # the stiffest element slips, the others hold
     assert f_s * np.mean(np.minimum(trace.y[-1] / slips, 1.0)) == pytest.approx(force, rel=0.01)
     assert trace.friction[-1] == pytest.approx(force, rel=0.01)
+
+
+def test_a_rod_that_never_moves_is_one_line_naming_the_record(tmp_path, capsys):
+    t = np.arange(0.0, 20.0, 0.01)
+    rig = _write_rig(tmp_path / "still", t, np.zeros(t.size), np.full(t.size, 3e5),
+                     np.full(t.size, 2e5 * AREA))
+    out = tmp_path / "out"
+    assert main(["friction", str(rig), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "rig.csv" in err and "moving" in err
+    assert not out.exists()
