@@ -27,6 +27,7 @@ COMMANDS = (
     "jetpipe_ros.diagnosis.cli",
     "jetpipe_ros.identify.cli",
     "jetpipe_ros.twin.cli",
+    "jetpipe_ros.identify.seal_cli",
 )
 
 

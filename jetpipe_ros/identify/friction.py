@@ -22,7 +22,8 @@ the tests is reported (the paper: under 5 %).
 
 A test gives parameters only if it slides over a wide enough velocity range to separate the
 Stribeck, Coulomb and viscous parts (released progressively, not in one jump); a phase needs
-three tests at non-collinear pressures for its planes.
+three tests for its planes (at pressures on a line, e.g. one side at atmosphere, the planes'
+slope is along the mean pressure only: :func:`fit_planes`).
 """
 
 from __future__ import annotations
@@ -128,8 +129,9 @@ def fit_test(rec: Recording, params: Mapping[str, Any]) -> FrictionTest:
     def residual(x: np.ndarray) -> np.ndarray:
         return sliding_friction(speed, *x) - mag
 
-    fit = optimize.least_squares(residual, start, bounds=([0.0, 1e-4, 0.0, 0.0],
-                                                          [1e4, 0.5, 1e5, 1e4]),
+    lower, upper = np.array([0.0, 1e-4, 0.0, 0.0]), np.array([1e4, 0.5, 1e5, 1e4])
+    # A direction whose friction fits "the wrong way" (a negative line) starts out of bounds.
+    fit = optimize.least_squares(residual, np.clip(start, lower, upper), bounds=(lower, upper),
                                  x_scale="jac")
     f_s, v_s, f_v, f_c = fit.x
     values = dict(zip(QUANTITIES, (s * f_s, s * v_s, f_v, s * f_c)))
@@ -140,15 +142,24 @@ def fit_test(rec: Recording, params: Mapping[str, Any]) -> FrictionTest:
 
 def fit_planes(tests: list[FrictionTest]) -> tuple[dict[str, list[float]], dict[str, float]]:
     """Planes c0 + c1 p1 + c2 p2 of each quantity over ``tests`` and their largest relative
-    error; raise ValueError if the test pressures are collinear."""
-    basis = np.column_stack(plane_basis(np.array([t.p1_bar for t in tests]),
-                                        np.array([t.p2_bar for t in tests])))
-    if np.linalg.matrix_rank(basis, tol=1e-3) < 3:
-        raise ValueError("test pressures are collinear")
+    error. Tests whose pressures lie on a line (one side at atmosphere, say) fix only the
+    plane's slope along the mean pressure (p1 + p2) / 2: it is split equally, c1 = c2; tests
+    at one pressure give a constant."""
+    p1 = np.array([t.p1_bar for t in tests])
+    p2 = np.array([t.p2_bar for t in tests])
+    basis = np.column_stack(plane_basis(p1, p2))
+    rank = np.linalg.matrix_rank(basis, tol=1e-3)
+    mean = 0.5 * (p1 + p2)
+    reduced = basis if rank == 3 else (np.column_stack((np.ones(p1.size), mean))
+                                       if np.ptp(mean) > 1e-3 else np.ones((p1.size, 1)))
     planes, errors = {}, {}
     for q in QUANTITIES:
         values = np.array([t.values[q] for t in tests])
-        coef, *_ = np.linalg.lstsq(basis, values, rcond=None)
+        coef, *_ = np.linalg.lstsq(reduced, values, rcond=None)
+        if reduced.shape[1] == 2:
+            coef = np.array([coef[0], 0.5 * coef[1], 0.5 * coef[1]])
+        elif reduced.shape[1] == 1:
+            coef = np.array([coef[0], 0.0, 0.0])
         planes[q] = [float(c) for c in coef]
         errors[q] = float(np.max(np.abs(basis @ coef - values) / np.abs(values)))
     return planes, errors
@@ -157,8 +168,8 @@ def fit_planes(tests: list[FrictionTest]) -> tuple[dict[str, list[float]], dict[
 def identify_friction(recs: list[Recording], params: Mapping[str, Any]) -> FrictionResult:
     """Friction planes of both phases from the friction tests ``recs``.
 
-    Tests that cannot separate the terms, and phases with fewer than three usable tests at
-    non-collinear pressures, are listed in ``skipped``; DatasetError if no phase remains.
+    Tests that cannot separate the terms, and phases with fewer than three usable tests, are
+    listed in ``skipped``; DatasetError if no phase remains.
     """
     if not recs:
         raise DatasetError("friction: no friction test (piston: free, regulated: true, the "
@@ -172,14 +183,12 @@ def identify_friction(recs: list[Recording], params: Mapping[str, Any]) -> Frict
     planes, errors = {}, {}
     for phase in PHASES:
         mine = [t for t in tests if t.phase == phase]
-        try:
-            if len(mine) < 3:
-                raise ValueError(f"{len(mine)} usable test(s), need 3")
-            planes[phase], errors[phase] = fit_planes(mine)
-        except ValueError as exc:
-            skipped.append(f"friction: {phase} phase planes not identified ({exc}; "
-                           f"{'p2 > p1' if phase == 'entry' else 'p1 > p2'} tests at "
-                           f"non-collinear pressures); keeping the starting planes")
+        if len(mine) < 3:
+            skipped.append(f"friction: {phase} phase planes not identified ({len(mine)} usable "
+                           f"test(s), need 3 {'p2 > p1' if phase == 'entry' else 'p1 > p2'} "
+                           f"tests); keeping the starting planes")
+            continue
+        planes[phase], errors[phase] = fit_planes(mine)
     if not planes:
         raise DatasetError("; ".join(skipped))
     return FrictionResult(planes=planes, tests=tests, max_relative_error=errors, skipped=skipped)

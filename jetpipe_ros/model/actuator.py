@@ -16,6 +16,7 @@ import numpy as np
 
 from jetpipe_ros.model import kernel
 from jetpipe_ros.model.flow import P_SUPPLY_NOMINAL
+from jetpipe_ros.model.friction import FRICTION_FORMS, MAXWELL_SLIP, STATIC, element_slips
 from jetpipe_ros.model.params import ModelParams
 from jetpipe_ros.model.valve import sample_valve
 
@@ -54,6 +55,8 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
     leakage = p["effects.leakage.enabled"]
     orifice = leakage and p["effects.leakage.form"] == "orifice"
     laminar = leakage and not orifice
+    friction_form = (FRICTION_FORMS[p["effects.friction_dynamics.form"]]
+                     if p["effects.friction_dynamics.enabled"] else STATIC)
     return kernel.Constants(
         dt=dt, substeps=substeps, u_limit=p["valve.command_limit"],
         valve_a=valve.a, valve_g=valve.g, valve_c=valve.c, valve_h=valve.h,
@@ -77,9 +80,12 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
         mass=effect("moving_mass", "mass", p["mechanics.mass"]),
         y_max=0.5 * p["mechanics.stroke"], locked=p["mechanics.locked"],
         regulated=p["chamber.regulated"], planes=planes,
-        lugre=bool(p["effects.friction_dynamics.enabled"]),
-        sigma0=p["effects.friction_dynamics.bristle_stiffness"],
+        friction_form=friction_form, sigma0=p["effects.friction_dynamics.bristle_stiffness"],
         sigma1=p["effects.friction_dynamics.bristle_damping"],
+        slips=element_slips(p["effects.friction_dynamics.presliding_displacement"],
+                            p["effects.friction_dynamics.presliding_spread"],
+                            p["effects.friction_dynamics.elements"])
+        if friction_form == MAXWELL_SLIP else np.zeros(0),
         sensor_tau=effect("sensor_dynamics", "time_constant", 0.0),
         sensor_bias=effect("sensor_dynamics", "bias", 0.0),
         sensor_bias_2=effect("sensor_dynamics", "bias_difference", 0.0),

@@ -1,13 +1,33 @@
-"""Pressure-dependent static friction of the piston, Eq. 15-18 with the planes of Eq. 20-27.
+"""Friction of the piston: the static Eq. 15-18 with the planes of Eq. 20-27, and its dynamic
+forms (LuGre bristles, Maxwell-slip elements) over the same planes.
 
 Each of the four friction parameters is a plane c0 + c1 p1 + c2 p2 over the chamber pressures in
 bar, one set for the entry phase (v < 0, fitted where p2 > p1) and one for the exit phase
 (v > 0, fitted where p1 > p2). Values are signed: in the entry phase forces and the Stribeck
 velocity are negative, so F(v) carries the sign of v. Outside its fitted region a phase's planes
-are evaluated at the mean pressure, and each parameter is kept on its physical side.
+are evaluated at the mean pressure, and each parameter is kept on its physical side. The
+breakaway F_S may lie below the Coulomb level F_C (no Stribeck dip: friction rising with speed,
+as real seals show at low speed); it is used as fitted.
+
+The dynamic forms replace Eq. 15's stick logic with a state that carries the friction through a
+reversal (pre-sliding) and that the kernel and the friction-rig fit advance with the same
+functions (:func:`lugre_step`, :func:`maxwell_slip_step`, :func:`prescribed_friction`):
+
+- **LuGre** (Canudas de Wit et al. 1995): one bristle deflection z [m],
+  dz/dt = v - sigma_0 |v| z / g(v), F = sigma_0 z + sigma_1 dz/dt + F_v v, with g(v) the
+  Stribeck curve of Eq. 18 (without its viscous term) of the direction of motion.
+- **Maxwell-slip** (Lampaert, Al-Bender and Swevers 2003, generalised Maxwell-slip without its
+  rate law): n elasto-plastic elements in parallel, element i slipping once its deflection
+  reaches delta_i. With s_i = deflection / delta_i in [-1, 1], ds_i/dx = 1/delta_i until
+  |s_i| = 1, and F = (1/n) sum_i s_i g_{sign s_i}(v) + F_v v: each element carries an equal
+  share of the Stribeck level of the direction it is deflected in. The delta_i lie geometrically
+  between spread * delta and delta (:func:`element_slips`), so the friction changes sign soon
+  after a reversal and reaches its level only after about 2 delta.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numba import njit
@@ -16,7 +36,7 @@ from numba import njit
 #: Coulomb F_C [N]; columns c0, c1, c2.
 BREAKAWAY, STRIBECK, VISCOUS, COULOMB = 0, 1, 2, 3
 
-#: Physical floors: |F_C| >= 1 N, |v_s| >= 1e-4 m/s (docs/model.md).
+#: Physical floors: |F_C|, |F_S| >= 1 N, |v_s| >= 1e-4 m/s (docs/model.md).
 MIN_COULOMB = 1.0
 MIN_STRIBECK = 1e-4
 
@@ -59,7 +79,7 @@ def friction_parameters(planes: np.ndarray, direction: float, p1: float, p2: flo
     f_c = plane(planes[phase, COULOMB], a, b)
     s = 1.0 if phase == 1 else -1.0
     f_c = s * max(s * f_c, MIN_COULOMB)
-    f_s = s * max(s * f_s, s * f_c)
+    f_s = s * max(s * f_s, MIN_COULOMB)
     v_s = s * max(s * v_s, MIN_STRIBECK)
     f_v = max(f_v, 0.0)
     return f_s, v_s, f_v, f_c
@@ -86,3 +106,108 @@ def static_friction(f_applied: float, f_s: float) -> float:
     """Eq. 15 at rest: the friction that balances ``f_applied``, at most the breakaway |F_S|."""
     lim = abs(f_s)
     return min(max(f_applied, -lim), lim)
+
+
+#: Friction forms: Eq. 15's stick logic over Eq. 18, LuGre bristles, Maxwell-slip elements.
+STATIC, LUGRE, MAXWELL_SLIP = 0, 1, 2
+#: The friction_dynamics effect's forms by name.
+FRICTION_FORMS = {"lugre": LUGRE, "maxwell_slip": MAXWELL_SLIP}
+#: Most Maxwell-slip elements the kernel's state holds.
+MAX_ELEMENTS = 8
+
+
+def element_slips(displacement: float, spread: float, elements: int) -> np.ndarray:
+    """Slip displacements delta_i [m] of ``elements`` Maxwell-slip elements, geometrically
+    from ``spread * displacement`` to ``displacement`` [m] (one element: ``displacement``)."""
+    if elements == 1:
+        return np.array([displacement])
+    return displacement * np.geomspace(spread, 1.0, elements)
+
+
+def presliding_displacement(slips: np.ndarray, fraction: float = 0.9) -> float:
+    """Displacement after a reversal [m] at which Maxwell-slip elements with slip displacements
+    ``slips`` [m] have covered ``fraction`` of the swing from one sliding level to the other
+    (equal levels, constant speed): the mean of min(u / (2 delta_i), 1) reaches ``fraction``."""
+    lo, hi = 0.0, 2.0 * float(np.max(slips))
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if np.mean(np.minimum(mid / (2.0 * slips), 1.0)) < fraction:
+            lo = mid
+        else:
+            hi = mid
+    return hi
+
+
+@njit(cache=True, error_model="numpy")
+def sliding_levels(planes: np.ndarray, v: float, p1: float, p2: float
+                   ) -> tuple[float, float, float, float]:
+    """Magnitudes of the Stribeck curve (Eq. 18 without its viscous term) [N] of the exit and
+    entry directions at velocity ``v`` [m/s] and pressures ``p1``, ``p2`` [Pa], and the
+    viscous coefficients F_v [N s/m] of both: (g_exit, g_entry, f_v_exit, f_v_entry)."""
+    f_s, v_s, f_v_exit, f_c = friction_parameters(planes, 1.0, p1, p2)
+    g_exit = abs(stribeck_force(v, f_s, v_s, f_c))
+    f_s, v_s, f_v_entry, f_c = friction_parameters(planes, -1.0, p1, p2)
+    g_entry = abs(stribeck_force(v, f_s, v_s, f_c))
+    return g_exit, g_entry, f_v_exit, f_v_entry
+
+
+@njit(cache=True, error_model="numpy")
+def lugre_step(z: float, v: float, g: float, sigma0: float, h: float) -> tuple[float, float]:
+    """Advance the LuGre bristle deflection ``z`` [m] over ``h`` [s] at velocity ``v`` [m/s]
+    (held) with Stribeck level ``g`` [N] and stiffness ``sigma0`` [N/m], exactly for the
+    linear ODE dz/dt = v - a z, a = sigma0 |v| / g [1/s]. Returns (z_new [m], a [1/s])."""
+    a = sigma0 * abs(v) / g
+    if a * h < 1e-12:
+        return z + h * v, a
+    return v / a + (z - v / a) * math.exp(-a * h), a
+
+
+@njit(cache=True, error_model="numpy")
+def maxwell_slip_step(s: np.ndarray, dx: float, slips: np.ndarray) -> None:
+    """Advance the normalised deflections ``s`` (in place, each in [-1, 1]) of Maxwell-slip
+    elements with slip displacements ``slips`` [m] by a displacement ``dx`` [m]."""
+    for i in range(slips.shape[0]):
+        s[i] = min(max(s[i] + dx / slips[i], -1.0), 1.0)
+
+
+@njit(cache=True, error_model="numpy")
+def maxwell_slip_force(s: np.ndarray, g_exit: float, g_entry: float) -> float:
+    """Friction [N] of Maxwell-slip elements at normalised deflections ``s``: each an equal
+    share of the Stribeck level [N] of the direction it is deflected in (without F_v v)."""
+    f = 0.0
+    for i in range(s.shape[0]):
+        f += s[i] * (g_exit if s[i] > 0.0 else g_entry)
+    return f / s.shape[0]
+
+
+@njit(cache=True, error_model="numpy")
+def prescribed_friction(form: int, planes: np.ndarray, v: np.ndarray, p1: np.ndarray,
+                        p2: np.ndarray, h: float, sigma0: float, sigma1: float,
+                        slips: np.ndarray) -> np.ndarray:
+    """Friction force [N] along a prescribed motion (a friction rig drives the rod): velocity
+    ``v`` [m/s] and pressures ``p1``, ``p2`` [Pa] sampled every ``h`` [s]; the dynamic
+    forms' state starts relaxed and is integrated from the velocity. ``form`` is
+    :data:`STATIC` (Eq. 18 in the direction of ``v``; 0 where v = 0), :data:`LUGRE`
+    (``sigma0`` [N/m], ``sigma1`` [N s/m]) or :data:`MAXWELL_SLIP` (``slips`` [m])."""
+    n = v.shape[0]
+    out = np.empty(n)
+    z = 0.0
+    s = np.zeros(slips.shape[0])
+    for k in range(n):
+        g_exit, g_entry, f_v_exit, f_v_entry = sliding_levels(planes, v[k], p1[k], p2[k])
+        f_v = f_v_exit if v[k] > 0.0 else f_v_entry
+        if form == LUGRE:
+            d = v[k] if v[k] != 0.0 else z
+            g = g_exit if d > 0.0 else g_entry
+            z, a = lugre_step(z, v[k], g, sigma0, h)
+            out[k] = sigma0 * z + sigma1 * (v[k] - a * z) + f_v * v[k]
+        elif form == MAXWELL_SLIP:
+            maxwell_slip_step(s, h * v[k], slips)
+            out[k] = maxwell_slip_force(s, g_exit, g_entry) + f_v * v[k]
+        elif v[k] > 0.0:
+            out[k] = g_exit + f_v * v[k]
+        elif v[k] < 0.0:
+            out[k] = -g_entry + f_v * v[k]
+        else:
+            out[k] = 0.0
+    return out

@@ -12,8 +12,8 @@ of length h:
 3. the flow map, leakage (effect) and Eq. 11-12 advance the pressures explicitly;
 4. the piston velocity advances with the viscous friction implicit (F_v/M reaches ~4000 1/s),
    and Eq. 15's stick condition is checked whenever the velocity reaches or crosses zero, so
-   stick-slip cannot chatter; with the friction_dynamics effect a LuGre bristle state replaces
-   the stick logic;
+   stick-slip cannot chatter; with the friction_dynamics effect a LuGre bristle state or
+   Maxwell-slip elements replace the stick logic (the elements' stiffness implicit too);
 5. the position advances (semi-implicit Euler) and stops inelastically at the end stops.
 
 Steps 1-2 depend on the command only, so :func:`advance` runs them ahead over a block of samples
@@ -38,14 +38,18 @@ from numba import njit
 from jetpipe_ros.model.chamber import (chamber_volumes, pressure_rates,
                                       pressure_temperature_rates)
 from jetpipe_ros.model.flow import GAMMA_AIR, P_ATM, chamber_inflow, orifice_flow
-from jetpipe_ros.model.friction import friction_parameters, static_friction, stribeck_force
+from jetpipe_ros.model.friction import (LUGRE, MAX_ELEMENTS, MAXWELL_SLIP, friction_parameters,
+                                        lugre_step, maxwell_slip_force, maxwell_slip_step,
+                                        sliding_levels, static_friction, stribeck_force)
 from jetpipe_ros.model.valve import U_EQ_MAX, U_EQ_MIN
 
-# State layout: scalars, then the hysteresis play operators, then the valve chain.
+# State layout: scalars, then the hysteresis play operators, the Maxwell-slip elements, then the
+# valve chain.
 Y, V, P1, P2, STUCK, Z, PS1, PS2, STEP, HEAD, UCMD, UEQ, FRICTION, T1, T2 = range(15)
 PLAY = 15  #: first of the MAX_PLAY hysteresis play-operator outputs
 MAX_PLAY = 8
-VALVE = PLAY + MAX_PLAY  #: first of the valve chain's states
+ELEMENT = PLAY + MAX_PLAY  #: first of the MAX_ELEMENTS Maxwell-slip normalised deflections
+VALVE = ELEMENT + MAX_ELEMENTS  #: first of the valve chain's states
 
 # Columns of the ``drive`` array of :func:`advance` (NaN = simulate that part).
 DRIVE_Y, DRIVE_V, DRIVE_P1, DRIVE_P2 = range(4)
@@ -93,9 +97,10 @@ class Constants(NamedTuple):
     locked: bool  #: piston clamped
     regulated: bool  #: chamber pressures held (ideal regulators)
     planes: np.ndarray  #: friction planes (2, 4, 3)
-    lugre: bool  #: LuGre friction dynamics instead of the stick logic
+    friction_form: int  #: :data:`~jetpipe_ros.model.friction.STATIC`, LUGRE or MAXWELL_SLIP
     sigma0: float  #: bristle stiffness [N/m]
     sigma1: float  #: bristle damping [N s/m]
+    slips: np.ndarray  #: Maxwell-slip elements' slip displacements [m]; empty unless that form
     sensor_tau: float  #: pressure sensor lag [s], 0 = ideal
     sensor_bias: float  #: pressure sensor bias [Pa]
     sensor_bias_2: float  #: chamber 2's sensor bias beyond that [Pa]
@@ -296,6 +301,7 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
                 pressurise = False
         y, v, p1, p2 = x[Y], x[V], x[P1], x[P2]
         stuck, z, friction = x[STUCK], x[Z], x[FRICTION]
+        elements = x[ELEMENT:ELEMENT + c.slips.shape[0]]
         t1, t2, ps1, ps2 = x[T1], x[T2], x[PS1], x[PS2]
         f_l = f_load[k]
         for s in range(k * ns, (k + 1) * ns):
@@ -314,8 +320,9 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
                 p2 = max(p2 + h * dp2, MIN_PRESSURE)
             if move:
                 y, v, stuck, z, friction = _mechanics_substep(
-                    planes, c.area * (p1 - p2) - f_l, p1, p2, h, c.mass, c.y_max, c.lugre,
-                    c.sigma0, c.sigma1, y, v, stuck, z, friction)
+                    planes, c.area * (p1 - p2) - f_l, p1, p2, h, c.mass, c.y_max,
+                    c.friction_form, c.sigma0, c.sigma1, c.slips, elements, y, v, stuck, z,
+                    friction)
             elif c.locked:
                 v = 0.0
                 friction = 0.0
@@ -335,27 +342,46 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _mechanics_substep(planes: np.ndarray, f_a: float, p1: float, p2: float, h: float,
-                       mass: float, y_max: float, lugre: bool, sigma0: float, sigma1: float,
-                       y: float, v: float, stuck: float, z: float, friction: float
-                       ) -> tuple[float, float, float, float, float]:
-    """Advance the piston one sub-step (Eq. 14 with Eq. 15-18 friction).
+                       mass: float, y_max: float, form: int, sigma0: float, sigma1: float,
+                       slips: np.ndarray, elements: np.ndarray, y: float, v: float, stuck: float,
+                       z: float, friction: float) -> tuple[float, float, float, float, float]:
+    """Advance the piston one sub-step (Eq. 14 with Eq. 15-18 friction or a dynamic form).
 
     ``f_a`` [N] is the applied force S (p1 - p2) - F_L at pressures ``p1``, ``p2`` [Pa];
-    ``planes``, ``mass``, ``y_max``, ``lugre``, ``sigma0`` and ``sigma1`` are the fields of
-    :class:`Constants`. From position ``y`` [m], velocity ``v`` [m/s], the stuck flag, the
-    LuGre bristle deflection ``z`` [m] and the friction force [N], returns the new (y, v,
-    stuck, z, friction).
+    ``planes``, ``mass``, ``y_max``, ``form`` (``friction_form``), ``sigma0``, ``sigma1`` and
+    ``slips`` are the fields of :class:`Constants`. From position ``y`` [m], velocity ``v``
+    [m/s], the stuck flag, the LuGre bristle deflection ``z`` [m] and the friction force [N],
+    returns the new (y, v, stuck, z, friction); the Maxwell-slip elements' normalised
+    deflections ``elements`` advance in place.
     """
-    if lugre:
+    if form == MAXWELL_SLIP:
+        g_exit, g_entry, f_v_exit, f_v_entry = sliding_levels(planes, v, p1, p2)
+        d = v if v != 0.0 else f_a
+        f_v = f_v_exit if d > 0.0 else f_v_entry
+        # Elements that stay elastic over the step are springs, implicit in the velocity:
+        # F = f_0 + h K v_new (+ F_v v_new).
+        f_0 = 0.0
+        stiffness = 0.0
+        n = slips.shape[0]
+        for i in range(n):
+            s = elements[i]
+            g = g_exit if (s > 0.0 or (s == 0.0 and d > 0.0)) else g_entry
+            if abs(s + h * v / slips[i]) < 1.0:
+                f_0 += s * g
+                stiffness += g / slips[i]
+            else:
+                f_0 += math.copysign(g, s + h * v)
+        f_0 /= n
+        stiffness /= n
+        v_new = (v + h / mass * (f_a - f_0)) / (1.0 + h * (f_v + h * stiffness) / mass)
+        maxwell_slip_step(elements, h * v_new, slips)
+        friction = maxwell_slip_force(elements, g_exit, g_entry) + f_v * v_new
+    elif form == LUGRE:
         d = math.copysign(1.0, v) if v != 0.0 else (math.copysign(1.0, f_a) if f_a != 0.0
                                                      else math.copysign(1.0, z))
         f_s, v_s, f_v, f_c = friction_parameters(planes, d, p1, p2)
         g = abs(stribeck_force(v, f_s, v_s, f_c))
-        a = sigma0 * abs(v) / g
-        if a * h < 1e-12:
-            z_new = z + h * v
-        else:
-            z_new = v / a + (z - v / a) * math.exp(-a * h)
+        z_new, a = lugre_step(z, v, g, sigma0, h)
         # Bristle force sigma0 z + sigma1 dz/dt with dz/dt = v - a z; v implicit.
         v_new = (v + h / mass * (f_a - sigma0 * z_new + sigma1 * a * z_new)) / \
             (1.0 + h * (f_v + sigma1) / mass)

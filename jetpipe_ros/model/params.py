@@ -20,6 +20,7 @@ import yaml
 from jetpipe_ros.fileio import read_yaml
 from jetpipe_ros.model.chamber import chamber_volumes
 from jetpipe_ros.model.errors import ParameterError
+from jetpipe_ros.model.friction import FRICTION_FORMS, MAX_ELEMENTS
 
 NODE_NAME = "actuator_sim"
 
@@ -61,6 +62,7 @@ FRICTION_PLANES = {
 THERMAL_FORMS = ("polytropic", "heat_transfer")
 LEAKAGE_FORMS = ("laminar", "orifice")
 LAG_FORMS = ("first_order", "second_order")
+DYNAMIC_FRICTION_FORMS = tuple(FRICTION_FORMS)
 FRICTION_UNITS = {"breakaway": "N", "stribeck_velocity": "m/s", "viscous": "N s/m", "coulomb": "N"}
 
 
@@ -202,8 +204,20 @@ _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
            "(form laminar)", "kg/(s Pa)", 0.0, 1e-7),
     ],
     "friction_dynamics": [
-        _p("bristle_stiffness", 1e5, "LuGre bristle stiffness sigma_0", "N/m", 1e2, 1e8),
-        _p("bristle_damping", 0.0, "LuGre bristle damping sigma_1", "N s/m", 0.0, 1e5),
+        _p("form", "lugre", "Dynamic friction over the Stribeck curves of the planes: LuGre "
+           "bristles (a stiffness and a damping), or Maxwell-slip elements (a pre-sliding "
+           "displacement and its spread; what real seals show)", choices=DYNAMIC_FRICTION_FORMS),
+        _p("bristle_stiffness", 1e5, "LuGre bristle stiffness sigma_0 (form lugre)", "N/m",
+           1e2, 1e8),
+        _p("bristle_damping", 0.0, "LuGre bristle damping sigma_1 (form lugre)", "N s/m", 0.0,
+           1e5),
+        _p("presliding_displacement", 5e-4, "Slip displacement delta of the softest "
+           "Maxwell-slip element (form maxwell_slip): the friction reaches its sliding level "
+           "about 2 delta after a reversal", "m", 1e-6, 0.01),
+        _p("presliding_spread", 0.1, "Stiffest element's slip displacement as a fraction of "
+           "presliding_displacement; the elements lie geometrically between (form "
+           "maxwell_slip)", "", 1e-3, 1.0),
+        _p("elements", 3, "Maxwell-slip elements (form maxwell_slip)", "", 1, MAX_ELEMENTS),
     ],
     "moving_mass": [_p("mass", 2.0, "Actual moving mass", "kg", 0.01, 100.0)],
     "sensor_dynamics": [

@@ -1,0 +1,176 @@
+"""Friction-rig records: a rod driven back and forth by an external drive, one chamber pressurised.
+
+A friction-rig folder holds ``records.yaml`` and one CSV per record::
+
+    records:
+      - file: seal_5bar.csv
+        bore: 0.025          # m; or area: 4.909e-4 (m^2)
+        gauge_bar: 5         # set pressure [bar gauge], optional (the CSV's p is what is used)
+        seal: NAPN           # optional: records of one seal are fitted together
+        role: holdout        # train | holdout, optional: holdout records are not fitted
+
+Each CSV has the header ``t,x,p,F`` (s, m, Pa absolute, N): time, rod position, the chamber
+pressure acting on the bore (the other side at atmosphere) and the force measured on the rod.
+The friction is F - (p - p_atm) A, positive in the direction of motion.
+
+Loggers lose rows and jitter. A record is put on a regular grid at its median sample time by
+linear interpolation; grid points farther than 0.6 sample from any logged row are marked
+invalid (gaps are masked, never refused). Only what cannot be read is refused, with a message
+naming the file, the line or the field.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from jetpipe_ros.dataset.errors import DatasetError
+from jetpipe_ros.fileio import load_yaml
+from jetpipe_ros.model.flow import P_ATM
+
+INDEX = "records.yaml"
+COLUMNS = ("t", "x", "p", "F")
+ROLES = ("train", "holdout")
+#: A grid point farther than this many sample times from any logged row is a gap.
+GAP_TOLERANCE = 0.6
+MIN_ROWS = 50
+
+
+@dataclass
+class RigRecord:
+    """One friction-rig record on a regular time grid [SI units]."""
+
+    name: str  #: file stem
+    file: str  #: CSV file name
+    seal: str  #: seal (records of one seal are fitted together)
+    area: float  #: area the pressure acts on [m^2]
+    role: str | None  #: train | holdout | None
+    set_pressure: float | None  #: set pressure [Pa absolute], as declared
+    t: np.ndarray  #: time [s], regular
+    x: np.ndarray  #: rod position [m]
+    p: np.ndarray  #: chamber pressure [Pa absolute]
+    force: np.ndarray  #: force on the rod [N]
+    valid: np.ndarray  #: bool: a logged row near this grid point (False in the logger's gaps)
+    notes: list[str]  #: what was done to the time base
+
+    @property
+    def dt(self) -> float:
+        """Sample time of the grid [s]."""
+        return float(self.t[1] - self.t[0])
+
+    @property
+    def friction(self) -> np.ndarray:
+        """Friction force F - (p - p_atm) A [N], positive in the direction of motion."""
+        return self.force - (self.p - P_ATM) * self.area
+
+
+def _number(where: str, key: str, value: Any, low: float, high: float, unit: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or \
+            not math.isfinite(value) or not low <= value <= high:
+        raise DatasetError(f"{where}: field {key!r} must be a number in [{low:g}, {high:g}] "
+                           f"{unit}, got {value!r}")
+    return float(value)
+
+
+def read_records(root: str | Path) -> list[RigRecord]:
+    """Read and check a friction-rig folder; DatasetError naming the file and field."""
+    root = Path(root)
+    index = root / INDEX
+    if not index.is_file():
+        raise DatasetError(f"{index}: no {INDEX} (a friction-rig folder lists its records "
+                           f"there: file, bore or area, optional seal, gauge_bar, role)")
+    try:
+        tree = load_yaml(index)
+    except yaml.YAMLError as exc:
+        raise DatasetError(f"{index}: not valid YAML: {exc}") from None
+    raw = tree.get("records") if isinstance(tree, dict) else None
+    if not isinstance(raw, list) or not raw:
+        raise DatasetError(f"{index}: expected a non-empty list 'records:'")
+    records, seen = [], set()
+    for i, entry in enumerate(raw, 1):
+        where = f"{index}: record {i}"
+        if not isinstance(entry, dict) or not isinstance(entry.get("file"), str):
+            raise DatasetError(f"{where}: expected a mapping with a 'file:' name")
+        where = f"{index}: record {i} ({entry['file']})"
+        unknown = set(entry) - {"file", "bore", "area", "gauge_bar", "seal", "role"}
+        if unknown:
+            raise DatasetError(f"{where}: unknown field(s) {', '.join(sorted(unknown))}")
+        if entry["file"] in seen:
+            raise DatasetError(f"{where}: listed twice")
+        seen.add(entry["file"])
+        if ("bore" in entry) == ("area" in entry):
+            raise DatasetError(f"{where}: give exactly one of 'bore' [m] or 'area' [m^2]")
+        if "bore" in entry:
+            area = math.pi * (_number(where, "bore", entry["bore"], 1e-4, 1.0, "m") / 2) ** 2
+        else:
+            area = _number(where, "area", entry["area"], 1e-8, 1.0, "m^2")
+        role = entry.get("role")
+        if role is not None and role not in ROLES:
+            raise DatasetError(f"{where}: field 'role' must be one of {', '.join(ROLES)}, "
+                               f"got {role!r}")
+        gauge = entry.get("gauge_bar")
+        set_pressure = None if gauge is None else \
+            P_ATM + 1e5 * _number(where, "gauge_bar", gauge, 0.0, 100.0, "bar")
+        t, x, p, force, valid, notes = _read_csv(root / entry["file"])
+        records.append(RigRecord(
+            name=Path(entry["file"]).stem, file=entry["file"], seal=str(entry.get("seal", "")),
+            area=area, role=role, set_pressure=set_pressure, t=t, x=x, p=p, force=force,
+            valid=valid, notes=notes))
+    return records
+
+
+def _read_csv(path: Path) -> tuple[np.ndarray, ...]:
+    """(t, x, p, F on a regular grid, valid mask, notes) of one record CSV."""
+    try:
+        handle = path.open(newline="")
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot open: {exc.strerror}") from None
+    with handle:
+        reader = csv.reader(handle)
+        header = [h.strip() for h in next(reader, [])]
+        missing = [c for c in COLUMNS if c not in header]
+        if missing:
+            raise DatasetError(f"{path}: line 1: missing column(s) {', '.join(missing)} "
+                               f"(header has {', '.join(header) or 'nothing'}; needs t,x,p,F "
+                               f"in s, m, Pa absolute, N)")
+        cols = [header.index(c) for c in COLUMNS]
+        rows = []
+        for line, row in enumerate(reader, start=2):
+            if not row or all(not c.strip() for c in row):
+                continue
+            try:
+                values = [float(row[j]) for j in cols]
+            except (ValueError, IndexError):
+                raise DatasetError(f"{path}: line {line}: expected numbers in columns "
+                                   f"{', '.join(COLUMNS)}, got {row!r}") from None
+            if not all(math.isfinite(v) for v in values):
+                raise DatasetError(f"{path}: line {line}: non-finite value in {row!r}")
+            rows.append(values)
+    if len(rows) < MIN_ROWS:
+        raise DatasetError(f"{path}: {len(rows)} data rows, need at least {MIN_ROWS}")
+    t, x, p, force = np.array(rows).T
+    step = np.diff(t)
+    if np.any(step <= 0.0):
+        k = int(np.flatnonzero(step <= 0.0)[0])
+        raise DatasetError(f"{path}: line {k + 3}: column 't' does not increase "
+                           f"({t[k]:g} s, then {t[k + 1]:g} s)")
+    if np.median(p) < 0.5 * P_ATM:
+        raise DatasetError(f"{path}: column 'p' has median {np.median(p):g} Pa: it must be the "
+                           f"absolute pressure in Pa (gauge bar x 1e5 + 1e5)")
+    dt = float(np.median(step))
+    grid = t[0] + dt * np.arange(int(round((t[-1] - t[0]) / dt)) + 1)
+    after = np.clip(np.searchsorted(t, grid), 1, t.size - 1)
+    nearest = np.minimum(np.abs(t[after] - grid), np.abs(t[after - 1] - grid))
+    valid = nearest <= GAP_TOLERANCE * dt
+    notes = [f"{path.name}: {t.size} rows put on a {dt * 1e3:.3g} ms grid of {grid.size} points"]
+    if not valid.all():
+        notes.append(f"{path.name}: {int((~valid).sum())} grid points in the logger's gaps "
+                     f"masked (longest gap {step.max():.3g} s)")
+    return (grid, np.interp(grid, t, x), np.interp(grid, t, p), np.interp(grid, t, force),
+            valid, notes)

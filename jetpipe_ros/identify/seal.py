@@ -1,0 +1,388 @@
+"""Seal friction from friction-rig records: the model's friction forms fitted and judged.
+
+A friction rig drives the rod along x(t) with one chamber at pressure p and the other at
+atmosphere (:mod:`jetpipe_ros.dataset.friction_rig`). Each form of the model's friction is
+evaluated along that motion by the model's own
+:func:`~jetpipe_ros.model.friction.prescribed_friction` (velocity from the zero-phase
+Savitzky-Golay derivative of x, the dynamic forms' state integrated from it), with planes built
+from a few physically bounded parameters per direction of motion (exit: v > 0, entry: v < 0):
+
+- the sliding level |F_C| = a + b (p1 + p2 - 2 p_atm) [N] (p in bar): one chamber pressure
+  fixes only the sum c1 + c2 of a plane, split equally, so the level grows with the mean
+  pressure on the seal; b is held at 0 when the records of a seal share one pressure;
+- the breakaway F_S = r F_C with 0.2 <= r <= 2 (r < 1: no Stribeck dip, friction rising with
+  speed), a Stribeck velocity v_s and a viscous F_v, constant over pressure;
+- ``lugre``: a bristle stiffness sigma_0 (no damping); ``maxwell_slip``: the pre-sliding
+  displacement delta and the spread of three elements.
+
+``coulomb_viscous`` (r = 1) and ``static`` (Eq. 18) have no state. Records of one seal (field
+``seal``) are fitted each on its first part (``split``), as the paper fits each test, and
+combined over pressure into the seal's planes (:func:`combine`, then refined by a joint fit of
+the seal's records); a ``role: holdout`` record is
+not fitted and is predicted by the seal's planes. Every record is judged on its held-out part,
+on moving samples (speed above :data:`MIN_SPEED`, the velocity's window clear of the logger's
+gaps). The form selected is the one with the lowest median held-out NRMSE.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy import optimize
+
+from jetpipe_ros.dataset import DatasetError
+from jetpipe_ros.dataset.friction_rig import RigRecord
+from jetpipe_ros.identify.differentiate import derivative, window_samples
+from jetpipe_ros.model.flow import P_ATM
+from jetpipe_ros.model.friction import (LUGRE, MAXWELL_SLIP, STATIC, element_slips,
+                                        prescribed_friction, presliding_displacement)
+from jetpipe_ros.model.params import ModelParams
+
+FORMS = ("coulomb_viscous", "static", "lugre", "maxwell_slip")
+#: Window of the velocity's zero-phase derivative [s] (about 0.1 mm of travel per sample at
+#: the rigs' speeds, and wide enough to average a 100 Hz logger's noise).
+WINDOW = 0.1
+#: Moving samples: speed above this [m/s].
+MIN_SPEED = 1e-3
+#: Maxwell-slip elements fitted.
+ELEMENTS = 3
+#: Records of one seal whose mean pressures span less than this [bar] share one pressure.
+MIN_PRESSURE_SPAN = 0.5
+DIRECTIONS = ("exit", "entry")
+#: Evaluations of the joint fit of a seal's records that refines their combined fits.
+SEAL_NFEV = 40
+
+#: Per direction: level a [N], slope b [N/bar], ratio r = F_S/F_C, v_s [m/s], F_v [N s/m].
+_PER_DIRECTION = (("level", -1e3, 1e4), ("slope", -1e3, 1e3), ("ratio", 0.2, 2.0),
+                  ("stribeck_velocity", 1e-4, 0.01), ("viscous", 0.0, 1e4))
+#: Dynamic parameters, fitted as log10: sigma_0 [N/m]; delta [m], spread [-].
+_DYNAMIC = {"lugre": (("bristle_stiffness", 2.0, 8.0),),
+            "maxwell_slip": (("presliding_displacement", -5.0, math.log10(5e-3)),
+                             ("presliding_spread", -2.0, 0.0))}
+
+
+@dataclass
+class Prepared:
+    """A record with what the fit needs: velocity, pressures, train and test masks."""
+
+    record: RigRecord
+    v: np.ndarray  #: velocity [m/s]
+    p1: np.ndarray  #: chamber pressure [Pa]
+    p2: np.ndarray  #: other side: atmosphere [Pa]
+    friction: np.ndarray  #: measured friction [N]
+    train: np.ndarray  #: bool: fitted samples
+    test: np.ndarray  #: bool: judged samples (held out, moving)
+
+
+@dataclass
+class FormFit:
+    """One form fitted to one seal's records."""
+
+    form: str
+    values: dict[str, float]  #: named parameters (per direction: ``exit.level`` ...)
+    planes: np.ndarray  #: (2, 4, 3) friction planes, the model's layout
+    sigma0: float  #: LuGre stiffness [N/m] (form lugre)
+    slips: np.ndarray  #: Maxwell-slip slip displacements [m] (form maxwell_slip)
+
+    def predict(self, prep: Prepared) -> np.ndarray:
+        """Modelled friction [N] along a prepared record."""
+        return prescribed_friction(_KERNEL_FORM[self.form], self.planes, prep.v, prep.p1,
+                                   prep.p2, prep.record.dt, self.sigma0, 0.0, self.slips)
+
+    def params(self, base: ModelParams) -> ModelParams:
+        """``base`` with this fit's planes and, for a dynamic form, its friction_dynamics."""
+        changes: dict[str, Any] = {}
+        for phase, i in (("entry", 0), ("exit", 1)):
+            for q, row in (("breakaway", 0), ("stribeck_velocity", 1), ("viscous", 2),
+                           ("coulomb", 3)):
+                changes[f"friction.{phase}.{q}"] = [float(c) for c in self.planes[i, row]]
+        params = base.with_values(changes)
+        if self.form == "lugre":
+            params = params.with_effect("friction_dynamics", form="lugre",
+                                        bristle_stiffness=self.sigma0, bristle_damping=0.0)
+        elif self.form == "maxwell_slip":
+            params = params.with_effect(
+                "friction_dynamics", form="maxwell_slip",
+                presliding_displacement=self.values["presliding_displacement"],
+                presliding_spread=self.values["presliding_spread"], elements=ELEMENTS)
+        return params
+
+    @property
+    def presliding(self) -> float:
+        """Displacement after a reversal [m] to 90 % of the swing between the sliding levels
+        (Maxwell-slip: :func:`presliding_displacement`; LuGre: 3 g / sigma_0 at the mean
+        level; NaN for the static forms)."""
+        if self.form == "maxwell_slip":
+            return presliding_displacement(self.slips)
+        if self.form == "lugre":
+            level = np.mean([abs(self.planes[i, 3, 0] + 2 * self.planes[i, 3, 1])
+                             for i in (0, 1)])
+            return float(math.log(20.0) * level / self.sigma0)
+        return math.nan
+
+
+_KERNEL_FORM = {"coulomb_viscous": STATIC, "static": STATIC, "lugre": LUGRE,
+                "maxwell_slip": MAXWELL_SLIP}
+
+
+def prepare(record: RigRecord, split: float = 0.5) -> Prepared:
+    """Velocity and masks of one record: train = the first ``split`` of a non-holdout record,
+    test = the rest (all of a holdout record); both moving samples with a clean window."""
+    n = window_samples(WINDOW, record.dt)
+    if record.t.size < 4 * n:
+        raise DatasetError(f"{record.file}: {record.t.size} samples, need at least {4 * n} "
+                           f"(four {WINDOW:g} s velocity windows)")
+    v = derivative(record.x, record.dt, WINDOW)
+    clean = np.convolve((~record.valid).astype(float), np.ones(n), "same") == 0.0
+    clean[:n] = clean[-n:] = False
+    moving = clean & (np.abs(v) > MIN_SPEED)
+    cut = int(split * record.t.size) if record.role != "holdout" else 0
+    first = np.arange(record.t.size) < cut
+    return Prepared(record=record, v=v, p1=record.p, p2=np.full(record.t.size, P_ATM),
+                    friction=record.friction, train=moving & first, test=moving & ~first)
+
+
+def _names(form: str) -> list[str]:
+    return [f"{d}.{q}" for d in DIRECTIONS for q, _, _ in _PER_DIRECTION] + \
+        [q for q, _, _ in _DYNAMIC.get(form, ())]
+
+
+def _bounds(form: str) -> tuple[np.ndarray, np.ndarray]:
+    spans = [(lo, hi) for _ in DIRECTIONS for _, lo, hi in _PER_DIRECTION] + \
+        [(lo, hi) for _, lo, hi in _DYNAMIC.get(form, ())]
+    return np.array([s[0] for s in spans]), np.array([s[1] for s in spans])
+
+
+def planes_of(values: dict[str, float]) -> np.ndarray:
+    """The model's (2, 4, 3) planes [entry, exit] x [F_S, v_s, F_v, F_C] x [c0, c1, c2] of
+    named parameters: |F_C| = level + slope (p1 + p2 - 2 bar), F_S = ratio F_C."""
+    planes = np.zeros((2, 4, 3))
+    for i, direction, sign in ((1, "exit", 1.0), (0, "entry", -1.0)):
+        a, b = values[f"{direction}.level"], values[f"{direction}.slope"]
+        coulomb = sign * np.array([a - 2.0 * b, b, b])
+        planes[i, 3] = coulomb
+        planes[i, 0] = values[f"{direction}.ratio"] * coulomb
+        planes[i, 1, 0] = sign * values[f"{direction}.stribeck_velocity"]
+        planes[i, 2, 0] = values[f"{direction}.viscous"]
+    return planes
+
+
+def _build(form: str, theta: np.ndarray) -> FormFit:
+    """The fit of parameter vector ``theta`` (dynamic parameters as log10)."""
+    values = dict(zip(_names(form), (float(x) for x in theta)))
+    for name, _, _ in _DYNAMIC.get(form, ()):
+        values[name] = 10.0 ** values[name]
+    return _from_values(form, values)
+
+
+def _from_values(form: str, values: dict[str, float]) -> FormFit:
+    """The fit of named parameters (SI units)."""
+    if form == "coulomb_viscous":
+        values["exit.ratio"] = values["entry.ratio"] = 1.0
+    slips = np.zeros(0)
+    if form == "maxwell_slip":
+        slips = element_slips(values["presliding_displacement"], values["presliding_spread"],
+                              ELEMENTS)
+    return FormFit(form=form, values=values, planes=planes_of(values),
+                   sigma0=values.get("bristle_stiffness", 0.0), slips=slips)
+
+
+def _start(form: str, preps: list[Prepared], attempt: int) -> np.ndarray:
+    """A generic start from the data's levels (medians of the training friction per
+    direction), never from a fitted answer; later attempts move the dynamic part."""
+    theta = []
+    for sign in (1.0, -1.0):
+        level = [np.median(sign * p.friction[p.train & (sign * p.v > 0)]) for p in preps
+                 if np.any(p.train & (sign * p.v > 0))]
+        theta += [float(np.median(level)) if level else 1.0, 0.0, 1.0, 5e-3, 0.0]
+    dynamic = {"bristle_stiffness": [4.5, 3.5, 6.0][attempt % 3],
+               "presliding_displacement": [-3.3, -3.8, -2.8][attempt % 3],
+               "presliding_spread": [-1.0, -0.5, -1.5][attempt % 3]}
+    theta += [dynamic[q] for q, _, _ in _DYNAMIC.get(form, ())]
+    return np.array(theta)
+
+
+def fit_form(form: str, preps: list[Prepared], what: str, attempts: int = 3,
+             start: FormFit | None = None, max_nfev: int = 200) -> FormFit:
+    """Fit ``form`` to the training samples of one seal's prepared records (least squares on
+    the friction [N]); a start outside the bounds is clipped into them, and a failed or
+    non-finite fit retried from another start. The first attempt starts from ``start`` if
+    given (the seal's records' fits combined), the others from the data's levels.
+    DatasetError naming the seal's records if no attempt succeeds (``what`` names them: the
+    record or the seal)."""
+    lo, hi = _bounds(form)
+    free = np.ones(lo.size, dtype=bool)
+    pressures = [float(np.mean(p.p1[p.train])) * 1e-5 for p in preps if p.train.any()]
+    if not pressures:
+        raise DatasetError(f"{what}: no moving training samples (role: holdout, or the rod "
+                           f"never moves faster than {MIN_SPEED * 1e3:g} mm/s)")
+    names = _names(form)
+    for i, name in enumerate(names):
+        fixed_slope = name.endswith(".slope") and \
+            max(pressures) - min(pressures) < MIN_PRESSURE_SPAN
+        if fixed_slope or (form == "coulomb_viscous" and name.endswith(
+                (".ratio", ".stribeck_velocity"))):
+            free[i] = False
+    trained = [p for p in preps if p.train.any()]
+    error = "no attempt"
+    for attempt in range(attempts):
+        if start is not None and attempt == 0:
+            dynamic = {q for q, _, _ in _DYNAMIC.get(form, ())}
+            held = np.array([math.log10(start.values[n]) if n in dynamic else start.values[n]
+                             for n in names])
+        else:
+            held = _start(form, trained, attempt)
+        held = np.clip(held, lo, hi)
+
+        def residual(x: np.ndarray, held: np.ndarray = held) -> np.ndarray:
+            theta = held.copy()
+            theta[free] = x
+            fit = _build(form, theta)
+            return np.concatenate([(fit.predict(p) - p.friction)[p.train] for p in trained])
+
+        try:
+            sol = optimize.least_squares(residual, held[free], bounds=(lo[free], hi[free]),
+                                         x_scale="jac", max_nfev=max_nfev)
+        except (ValueError, FloatingPointError) as exc:
+            error = str(exc)
+            continue
+        # Status 0 (evaluations used up) keeps the best point reached: still a fit.
+        if sol.status >= 0 and np.all(np.isfinite(sol.fun)):
+            theta = held.copy()
+            theta[free] = sol.x
+            return _build(form, theta)
+        error = sol.message if sol.status < 0 else "non-finite residuals"
+    raise DatasetError(f"{what}: the {form} friction fit failed: {error}")
+
+
+def scores(measured: np.ndarray, model: np.ndarray, v: np.ndarray) -> dict[str, float]:
+    """NRMSE (RMS error over the measured range), R^2, R^2 within each direction of motion
+    (what the sign flip between directions does not explain) and pooled over both, and the
+    sample count, of friction [N] ``model`` against ``measured`` at velocities ``v``."""
+    err = model - measured
+    out = {"samples": float(measured.size),
+           "nrmse": float(np.sqrt(np.mean(err ** 2)) / np.ptp(measured)),
+           "r2": float(1.0 - np.sum(err ** 2) / np.sum((measured - measured.mean()) ** 2))}
+    sse = sst = 0.0
+    for direction, sign in zip(DIRECTIONS, (1.0, -1.0)):
+        m = sign * v > 0
+        if m.sum() < 3:
+            out[f"r2_{direction}"] = math.nan
+            continue
+        e, s = np.sum(err[m] ** 2), np.sum((measured[m] - measured[m].mean()) ** 2)
+        out[f"r2_{direction}"] = float(1.0 - e / s)
+        sse, sst = sse + e, sst + s
+    out["r2_within"] = float(1.0 - sse / sst) if sst > 0 else math.nan
+    return out
+
+
+def measured_presliding(prep: Prepared, fraction: float = 0.9) -> np.ndarray:
+    """Displacement [m] after each reversal of a record at which the measured friction has
+    covered ``fraction`` of its swing from the level before the reversal (median over the last
+    2 mm before it) to the level after (median over 3-5 mm after it); reversals whose
+    transition lies in a logger's gap are skipped."""
+    x, f, v, ok = prep.record.x, prep.friction, prep.v, prep.record.valid
+    out = []
+    turns = np.flatnonzero(np.sign(v[1:]) != np.sign(v[:-1])) + 1
+    for k, end in zip(turns, [*turns[1:], x.size]):
+        sign = 1.0 if v[k] > 0 else -1.0
+        u = sign * (x - x[k])
+        before = np.arange(max(0, k - 400), k)
+        before = before[u[before] > -2e-3]
+        after = np.arange(k, end)
+        level_after = after[(u[after] > 3e-3) & (u[after] < 5e-3)]
+        if before.size < 3 or level_after.size < 3:
+            continue
+        f0, f1 = np.median(f[before]), np.median(f[level_after])
+        if sign * (f1 - f0) < 1.0:
+            continue
+        reached = after[sign * (f[after] - f0) >= fraction * sign * (f1 - f0)]
+        if reached.size and ok[max(0, k - 3):reached[0] + 2].all():
+            out.append(float(u[reached[0]]))
+    return np.array(out)
+
+
+def combine(form: str, fits: list[FormFit], pressures: list[float]) -> FormFit:
+    """One seal's fit over pressure from its records' fits at ``pressures`` [Pa] (the paper's
+    route from tests to planes, Sec. 4.2.3): per direction a line of the level over the
+    pressure (its slope 0 when the pressures span less than :data:`MIN_PRESSURE_SPAN`), the
+    other parameters' medians."""
+    gauge = (np.asarray(pressures) - P_ATM) * 1e-5
+    values = {}
+    for name in fits[0].values:
+        values[name] = float(np.median([f.values[name] for f in fits]))
+    for direction in DIRECTIONS:
+        levels = np.array([f.values[f"{direction}.level"] for f in fits])
+        if np.ptp(gauge) >= MIN_PRESSURE_SPAN:
+            slope, level = np.polyfit(gauge, levels, 1)
+        else:
+            slope, level = 0.0, float(np.mean(levels))
+        values[f"{direction}.level"], values[f"{direction}.slope"] = float(level), float(slope)
+    return _from_values(form, values)
+
+
+@dataclass
+class SealResult:
+    """Every form fitted to one seal's records, judged, and the one selected."""
+
+    seal: str
+    preps: list[Prepared]
+    per_record: dict[str, dict[str, FormFit]]  #: form -> record name -> its own fit
+    seal_fits: dict[str, FormFit]  #: form -> the seal's fit over pressure
+    scores: dict[str, dict[str, dict[str, float]]]  #: form -> record name -> metrics
+    selected: str
+
+    def model_of(self, form: str, prep: Prepared) -> FormFit:
+        """The fit that predicts a record: its own, or the seal's for a held-out record."""
+        return self.per_record[form].get(prep.record.name, self.seal_fits[form])
+
+
+def identify_seal(seal: str, records: list[RigRecord], split: float = 0.5) -> SealResult:
+    """Fit every form to each training record of one seal (the first ``split`` of it), combine
+    them over pressure (:func:`combine`), judge each record's held-out samples with its own
+    fit (a ``role: holdout`` record with the seal's), and select the form with the lowest
+    median held-out NRMSE."""
+    preps = [prepare(r, split) for r in records]
+    trained = [p for p in preps if p.train.any()]
+    if not trained:
+        raise DatasetError(f"{seal}: no moving training samples in "
+                           f"{', '.join(r.file for r in records)} (all role: holdout, or the "
+                           f"rod never moves faster than {MIN_SPEED * 1e3:g} mm/s)")
+    per_record: dict[str, dict[str, FormFit]] = {}
+    seal_fits: dict[str, FormFit] = {}
+    judged: dict[str, dict[str, dict[str, float]]] = {}
+    for form in FORMS:
+        own = {p.record.name: fit_form(form, [p], p.record.file) for p in trained}
+        per_record[form] = own
+        seal_fits[form] = combine(form, list(own.values()),
+                                  [float(np.mean(p.p1[p.train])) for p in trained])
+        if len(trained) > 1:
+            # One set of planes for all the seal's pressures, refined from the combination.
+            seal_fits[form] = fit_form(form, trained, seal or "seal", start=seal_fits[form],
+                                       max_nfev=SEAL_NFEV)
+        judged[form] = {}
+        for p in preps:
+            if p.test.sum() >= 10:
+                fit = own.get(p.record.name, seal_fits[form])
+                judged[form][p.record.name] = scores(
+                    p.friction[p.test], fit.predict(p)[p.test], p.v[p.test])
+    if not judged[FORMS[0]]:
+        raise DatasetError(f"{seal}: no held-out moving samples in "
+                           f"{', '.join(r.file for r in records)} (split {split:g})")
+    selected = min(FORMS, key=lambda form: float(np.median(
+        [s["nrmse"] for s in judged[form].values()])))
+    return SealResult(seal=seal, preps=preps, per_record=per_record, seal_fits=seal_fits,
+                      scores=judged, selected=selected)
+
+
+def since_reversal(x: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Displacement since the last reversal [m], signed as the motion: x minus x where the
+    velocity ``v`` last changed sign (NaN before the first reversal)."""
+    out = np.full(x.size, math.nan)
+    turns = np.flatnonzero(np.sign(v[1:]) != np.sign(v[:-1])) + 1
+    for k, end in zip(turns, [*turns[1:], x.size]):
+        out[k:end] = x[k:end] - x[k]
+    return out

@@ -1,0 +1,160 @@
+"""What ``jetpipe friction`` writes: the parameter YAML, the JSON scores, the predictions and a
+self-contained HTML report (figures inlined as PNG)."""
+
+from __future__ import annotations
+
+import html
+import io
+import math
+from typing import Any
+
+import numpy as np
+
+from jetpipe_ros.identify.seal import (FORMS, Prepared, SealResult, measured_presliding,
+                                       since_reversal)
+from jetpipe_ros.model.params import ModelParams
+
+SCHEMA = "jetpipe.friction/1"
+
+
+def _median(values: list[float]) -> float:
+    finite = [v for v in values if math.isfinite(v)]
+    return float(np.median(finite)) if finite else math.nan
+
+
+def summary_table(results: list[SealResult]) -> dict[str, dict[str, float]]:
+    """Per form: median held-out NRMSE, R^2 and within-direction R^2 over all records."""
+    out = {}
+    for form in FORMS:
+        rows = [s for r in results for s in r.scores[form].values()]
+        out[form] = {"median_nrmse": _median([s["nrmse"] for s in rows]),
+                     "median_r2": _median([s["r2"] for s in rows]),
+                     "median_r2_within": _median([s["r2_within"] for s in rows]),
+                     "records": len(rows)}
+    return out
+
+
+def to_json(results: list[SealResult], split: float, notes: list[str]) -> dict[str, Any]:
+    """The content of ``friction.json``."""
+    seals = {}
+    for res in results:
+        records = {}
+        for prep in res.preps:
+            measured = measured_presliding(prep)
+            records[prep.record.name] = {
+                "file": prep.record.file, "role": prep.record.role or "train",
+                "mean_pressure_pa": float(np.mean(prep.p1)),
+                "heldout_moving_samples": int(prep.test.sum()),
+                "scores": {form: res.scores[form].get(prep.record.name) for form in FORMS},
+                "presliding_displacement_m": {
+                    "model": res.model_of(res.selected, prep).presliding,
+                    "measured": [float(np.min(measured)), float(np.median(measured)),
+                                 float(np.max(measured))] if measured.size else None}}
+        seals[res.seal or "seal"] = {
+            "selected": res.selected,
+            "parameters": {form: res.seal_fits[form].values for form in FORMS},
+            "records": records}
+    return {"schema": SCHEMA, "split": split,
+            "metric": "on held-out moving samples: NRMSE = RMS error / range of the measured "
+                      "friction; R^2; R^2 within each direction (exit v > 0, entry v < 0) and "
+                      "pooled (r2_within)",
+            "summary": summary_table(results), "seals": seals, "notes": notes}
+
+
+def prediction_csv(res: SealResult, prep: Prepared) -> str:
+    """``t,F_friction_measured,F_friction_model`` over the held-out part of a record (grid
+    points in the logger's gaps left out), modelled by the selected form."""
+    rec = prep.record
+    model = res.model_of(res.selected, prep).predict(prep)
+    first = int(np.argmax(prep.test)) if prep.test.any() else rec.t.size
+    if rec.role == "holdout":
+        first = 0
+    rows = [f"{rec.t[k]:.4f},{prep.friction[k]:.4f},{model[k]:.4f}"
+            for k in range(first, rec.t.size) if rec.valid[k]]
+    return "t,F_friction_measured,F_friction_model\n" + "\n".join(rows) + "\n"
+
+
+def _png(fig: Any) -> str:
+    import base64
+
+    import matplotlib.pyplot as plt
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=80, bbox_inches="tight")
+    plt.close(fig)
+    return ("<img alt='figure' src='data:image/png;base64,"
+            + base64.b64encode(buf.getvalue()).decode() + "'>")
+
+
+def loop_figure(res: SealResult, preps: list[Prepared]) -> Any:
+    """Measured and modelled friction against velocity and against the displacement since
+    the last reversal, one row per record (pressure), held-out moving samples."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(preps), 2, figsize=(10, 2.6 * len(preps)), squeeze=False)
+    for row, prep in zip(axes, preps):
+        m = prep.test
+        since = since_reversal(prep.record.x, prep.v)
+        label = f"{prep.record.name} ({(np.mean(prep.p1) - 1e5) * 1e-5:.1f} bar gauge)"
+        row[0].plot(prep.v[m] * 1e3, prep.friction[m], ".", ms=2, color="0.6", label="measured")
+        row[1].plot(since[m] * 1e3, prep.friction[m], ".", ms=2, color="0.6", label="measured")
+        for form, colour in (("static", "tab:blue"), (res.selected, "tab:red")):
+            model = res.model_of(form, prep).predict(prep)
+            row[0].plot(prep.v[m] * 1e3, model[m], ".", ms=1.5, color=colour, label=form)
+            row[1].plot(since[m] * 1e3, model[m], ".", ms=1.5, color=colour, label=form)
+        row[0].set_xlabel("velocity [mm/s]")
+        row[1].set_xlabel("displacement since reversal [mm] (signed as the motion)")
+        row[1].set_xlim(-3, 3)
+        for ax in row:
+            ax.set_ylabel("friction [N]")
+            ax.set_title(label, fontsize=9)
+            ax.grid(alpha=0.3)
+        row[1].legend(fontsize=7, markerscale=4)
+    fig.tight_layout()
+    return fig
+
+
+def html_report(results: list[SealResult], doc: dict[str, Any]) -> str:
+    """The self-contained HTML report."""
+    table = "".join(
+        f"<tr><td>{form}</td><td>{s['median_nrmse'] * 100:.2f} %</td>"
+        f"<td>{s['median_r2']:.3f}</td><td>{s['median_r2_within']:.3f}</td></tr>"
+        for form, s in doc["summary"].items())
+    parts = ["<!DOCTYPE html><html><head><meta charset='utf-8'><title>jetpipe friction</title>"
+             "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}"
+             "td,th{border:1px solid #ccc;padding:2px 6px;font-size:13px}</style></head><body>",
+             "<h1>Seal friction from friction-rig records</h1>",
+             "<p>" + html.escape(doc["metric"]) + "</p>",
+             "<h2>Held-out scores (medians over records)</h2><table><tr><th>form</th>"
+             "<th>NRMSE</th><th>R^2</th><th>R^2 within direction</th></tr>" + table +
+             "</table>"]
+    for res in results:
+        name = res.seal or "seal"
+        parts.append(f"<h2>{html.escape(name)}: selected {res.selected}</h2><table><tr>"
+                     "<th>record</th>" + "".join(f"<th>{f}</th>" for f in FORMS) + "</tr>")
+        for prep in res.preps:
+            cells = []
+            for form in FORMS:
+                s = res.scores[form].get(prep.record.name)
+                cells.append(f"<td>{s['nrmse'] * 100:.2f} % / {s['r2_within']:.2f}</td>"
+                             if s else "<td>-</td>")
+            parts.append(f"<tr><td>{html.escape(prep.record.name)}</td>{''.join(cells)}</tr>")
+        parts.append("</table><p>NRMSE / R^2 within direction, held-out moving samples.</p>")
+        values = res.seal_fits[res.selected].values
+        parts.append("<pre>" + html.escape("\n".join(f"{k}: {v:.5g}" for k, v in
+                                                     values.items())) + "</pre>")
+        parts.append(_png(loop_figure(res, res.preps)))
+    parts.append("<h2>Notes</h2><pre>" + html.escape("\n".join(doc["notes"])) + "</pre>")
+    parts.append("</body></html>")
+    return "".join(parts)
+
+
+def params_yaml(res: SealResult, base: ModelParams) -> str:
+    """The seal's selected fit as a parameter file (ROS params layout)."""
+    fit = res.seal_fits[res.selected]
+    header = (f"# jetpipe friction: seal {res.seal or '(unnamed)'}, form {res.selected}, "
+              f"fitted on a friction rig (planes over the rig's pressure; see docs/friction.md)\n")
+    return header + fit.params(base).to_ros_yaml(only_changed=True)
