@@ -21,9 +21,7 @@ from __future__ import annotations
 
 import argparse
 import io
-import os
 import shutil
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -36,6 +34,7 @@ import numpy as np  # noqa: E402
 from scipy import signal  # noqa: E402
 
 from jetpipe_ros import fileio  # noqa: E402
+from jetpipe_ros.children import Nodes  # noqa: E402
 from jetpipe_ros.bag import export_bag  # noqa: E402
 from jetpipe_ros.dataset import COMPLETE, Dataset, read_dataset  # noqa: E402
 from jetpipe_ros.model import ModelParams, simulate  # noqa: E402
@@ -71,52 +70,6 @@ def print_valve_figures() -> None:
     print(f"  overshoot                 {fig['overshoot'] * 100:6.1f} %")
     print(f"  rise 10-90 %              {fig['rise_s'] * 1e3:6.1f} ms   6 ms")
     print(f"  settling 5 %              {fig['settling_s'] * 1e3:6.1f} ms  36 ms")
-
-
-class Nodes:
-    """The ROS processes of the showcase; their output goes to ``logs/<name>.log``."""
-
-    def __init__(self, logs: Path) -> None:
-        self.logs = logs
-        logs.mkdir(parents=True, exist_ok=True)
-        self.env = dict(os.environ, PYTHONUNBUFFERED="1")
-        self.env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        self.procs: dict[str, subprocess.Popen] = {}
-
-    def start(self, name: str, ros_args: list[str]) -> subprocess.Popen:
-        """Start node module ``jetpipe_ros.nodes.<name>`` in the showcase namespace."""
-        log = (self.logs / f"{name}.log").open("w")
-        proc = subprocess.Popen(
-            [sys.executable, "-m", f"jetpipe_ros.nodes.{name}", "--ros-args",
-             "-r", f"__ns:={NAMESPACE}", *ros_args],
-            stdout=log, stderr=subprocess.STDOUT, env=self.env)
-        self.procs[name] = proc
-        return proc
-
-    def wait_for(self, name: str, text: str, timeout: float) -> str:
-        """The first line of ``name``'s log containing ``text``; RuntimeError on timeout."""
-        deadline = time.monotonic() + timeout
-        path = self.logs / f"{name}.log"
-        while time.monotonic() < deadline:
-            for line in path.read_text().splitlines():
-                if text in line:
-                    return line
-            if self.procs[name].poll() is not None:
-                break
-            time.sleep(0.2)
-        raise RuntimeError(f"{name} did not print {text!r}; see {path}")
-
-    def stop(self) -> None:
-        """SIGTERM every process still running, then wait (kill after 10 s)."""
-        for proc in self.procs.values():
-            if proc.poll() is None:
-                proc.terminate()
-        for proc in self.procs.values():
-            try:
-                proc.wait(10.0)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
 
 
 def start_standin(nodes: Nodes, out: Path) -> ModelParams:
@@ -216,7 +169,7 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
 
     print_valve_figures()
-    nodes = Nodes(out / "logs")
+    nodes = Nodes(out / "logs", NAMESPACE)
     try:
         start_standin(nodes, out)
         record_campaign(nodes, out / "bag")

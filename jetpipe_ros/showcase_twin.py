@@ -15,13 +15,12 @@ in the namespace ``/showcase_twin``; every process started here is stopped on ex
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
-import subprocess
 import sys
 import time
 from pathlib import Path
 from jetpipe_ros import fileio
+from jetpipe_ros.children import Nodes
 from jetpipe_ros.nodes.gap_watch import Watch
 from jetpipe_ros.package_data import share_file
 
@@ -33,16 +32,6 @@ AUTO = 10.0  #: [s] the gap at ERROR this long starts the capture
 LEVELS = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}
 
 
-def start(name: str, logs: Path, ros_args: list[str]) -> subprocess.Popen:
-    """Node module ``jetpipe_ros.nodes.<name>`` in the namespace, its output in logs/."""
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
-    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    log = (logs / f"{name}.log").open("w")
-    return subprocess.Popen([sys.executable, "-m", f"jetpipe_ros.nodes.{name}", "--ros-args",
-                             "-r", f"__ns:={NAMESPACE}", *ros_args],
-                            stdout=log, stderr=subprocess.STDOUT, env=env)
-
-
 def _line(watch: Watch, t0: float) -> tuple[int, str]:
     level, message, _ = watch.status.get("gap", (3, "no status yet", {}))
     print(f"  {time.monotonic() - t0:5.1f} s  {LEVELS.get(level, level):5s} {message}")
@@ -50,19 +39,17 @@ def _line(watch: Watch, t0: float) -> tuple[int, str]:
 
 
 def run(out: Path) -> int:
-    logs = out / "logs"
-    logs.mkdir(parents=True, exist_ok=True)
-    procs = {
-        "actuator_sim": start("actuator_sim", logs, [
+    nodes = Nodes(out / "logs", NAMESPACE)
+    for name, args in (
+        ("actuator_sim", [
             "--params-file", str(share_file("config/actuator.yaml")),
             "-p", "sensors.noise:=true", "-p", "time_mode:=sim", "-p", "report_period:=0.0"]),
-        "controller": start("controller", logs, [
-            "--params-file", str(share_file("config/controller.yaml"))]),
-        "gap_monitor": start("gap_monitor", logs, [
+        ("controller", ["--params-file", str(share_file("config/controller.yaml"))]),
+        ("gap_monitor", [
             "--params-file", str(share_file("config/gap_monitor.yaml")),
             "-p", f"capture_dir:={out / 'captures'}", "-p", f"capture_seconds:={CAPTURE}",
-            "-p", f"auto_capture_after:={AUTO}"]),
-    }
+            "-p", f"auto_capture_after:={AUTO}"])):
+        nodes.start(name, args)
     print("Stand-in hardware: actuator_sim (nominal model, sensor noise) under the controller; "
           "gap_monitor runs the nominal model beside it")
     watch = Watch(NAMESPACE)
@@ -101,15 +88,7 @@ def run(out: Path) -> int:
         return 0 if named else 1
     finally:
         watch.close()
-        for p in procs.values():
-            if p.poll() is None:
-                p.terminate()
-        for p in procs.values():
-            try:
-                p.wait(10.0)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+        nodes.stop()
 
 
 def main(argv: list[str] | None = None) -> int:
