@@ -20,7 +20,7 @@ from __future__ import annotations
 import csv
 import io
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -88,6 +88,21 @@ def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
     path = Path(path)
     required, any_of = tuple(required), tuple(any_of)
     declared(f"{path}: units", units)  # a bad declaration before the file
+    cols, line_nos = read_columns(path, required, (*COMPLETE, *OPTIONAL), any_of=any_of)
+    notes = to_si(f"{path}: units", cols, units)
+    timebase.check_increasing(path, cols["t"], line_nos)
+    plausibility.check(path, cols, limits, line_nos)
+    cols, valid, changes = timebase.regularise(path, cols, line_nos)
+    return Experiment(name=path.stem, **cols, valid=valid, notes=notes + changes)
+
+
+def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
+                 any_of: Sequence[str] = (), least: int = 2, hint: str = ""
+                 ) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """The numeric columns ``known`` that a CSV with a header row has (``required`` all of
+    them, at least one of ``any_of``), each as a float array, and the file's line number of
+    every data row (blank rows skipped). Anything unreadable raises DatasetError naming the
+    file, the line and the column (``hint`` says what the columns should hold)."""
     try:
         handle = path.open(newline="")
     except OSError as exc:
@@ -101,11 +116,11 @@ def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
         missing = [c for c in required if c not in header]
         if missing:
             raise DatasetError(f"{path}: line 1: missing column(s) {', '.join(missing)} "
-                               f"(header has {', '.join(header)})")
+                               f"(header has {', '.join(header)}{hint})")
         if any_of and not any(c in header for c in any_of):
             raise DatasetError(f"{path}: line 1: no measured column: needs at least one of "
                                f"{', '.join(any_of)} (header has {', '.join(header)})")
-        wanted = [c for c in (*COMPLETE, *OPTIONAL) if c in header]
+        wanted = [c for c in known if c in header]
         index = {c: header.index(c) for c in wanted}
         rows: list[list[float]] = []
         lines: list[int] = []
@@ -127,16 +142,11 @@ def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
                 values.append(value)
             rows.append(values)
             lines.append(line_no)
-    if len(rows) < 2:
-        raise DatasetError(f"{path}: needs at least 2 data rows, has {len(rows)}")
+    if len(rows) < least:
+        raise DatasetError(f"{path}: needs at least {least} data rows, has {len(rows)}")
     data = np.array(rows)
-    line_nos = np.array(lines)
-    cols = {c: np.ascontiguousarray(data[:, j]) for j, c in enumerate(wanted)}
-    notes = to_si(f"{path}: units", cols, units)
-    timebase.check_increasing(path, cols["t"], line_nos)
-    plausibility.check(path, cols, limits, line_nos)
-    cols, valid, changes = timebase.regularise(path, cols, line_nos)
-    return Experiment(name=path.stem, **cols, valid=valid, notes=notes + changes)
+    return ({c: np.ascontiguousarray(data[:, j]) for j, c in enumerate(wanted)},
+            np.array(lines))
 
 
 def write_experiment(path: str | Path, columns: Mapping[str, np.ndarray]) -> None:

@@ -21,7 +21,6 @@ naming the file, the line or the field.
 
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +30,8 @@ import numpy as np
 import yaml
 
 from jetpipe_ros.dataset.errors import DatasetError
+from jetpipe_ros.dataset.experiment import read_columns
+from jetpipe_ros.dataset.timebase import check_increasing
 from jetpipe_ros.fileio import load_yaml
 from jetpipe_ros.model.flow import P_ATM
 
@@ -127,39 +128,11 @@ def read_records(root: str | Path) -> list[RigRecord]:
 
 def _read_csv(path: Path) -> tuple[np.ndarray, ...]:
     """(t, x, p, F on a regular grid, valid mask, notes) of one record CSV."""
-    try:
-        handle = path.open(newline="")
-    except OSError as exc:
-        raise DatasetError(f"{path}: cannot open: {exc.strerror}") from None
-    with handle:
-        reader = csv.reader(handle)
-        header = [h.strip() for h in next(reader, [])]
-        missing = [c for c in COLUMNS if c not in header]
-        if missing:
-            raise DatasetError(f"{path}: line 1: missing column(s) {', '.join(missing)} "
-                               f"(header has {', '.join(header) or 'nothing'}; needs t,x,p,F "
-                               f"in s, m, Pa absolute, N)")
-        cols = [header.index(c) for c in COLUMNS]
-        rows = []
-        for line, row in enumerate(reader, start=2):
-            if not row or all(not c.strip() for c in row):
-                continue
-            try:
-                values = [float(row[j]) for j in cols]
-            except (ValueError, IndexError):
-                raise DatasetError(f"{path}: line {line}: expected numbers in columns "
-                                   f"{', '.join(COLUMNS)}, got {row!r}") from None
-            if not all(math.isfinite(v) for v in values):
-                raise DatasetError(f"{path}: line {line}: non-finite value in {row!r}")
-            rows.append(values)
-    if len(rows) < MIN_ROWS:
-        raise DatasetError(f"{path}: {len(rows)} data rows, need at least {MIN_ROWS}")
-    t, x, p, force = np.array(rows).T
+    cols, lines = read_columns(path, COLUMNS, COLUMNS, least=MIN_ROWS,
+                               hint="; needs t,x,p,F in s, m, Pa absolute, N")
+    t, x, p, force = (cols[c] for c in COLUMNS)
+    check_increasing(path, t, lines)
     step = np.diff(t)
-    if np.any(step <= 0.0):
-        k = int(np.flatnonzero(step <= 0.0)[0])
-        raise DatasetError(f"{path}: line {k + 3}: column 't' does not increase "
-                           f"({t[k]:g} s, then {t[k + 1]:g} s)")
     if np.median(p) < 0.5 * P_ATM:
         raise DatasetError(f"{path}: column 'p' has median {np.median(p):g} Pa: it must be the "
                            f"absolute pressure in Pa (gauge bar x 1e5 + 1e5)")
