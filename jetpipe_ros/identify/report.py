@@ -84,11 +84,12 @@ def summary(ident: Identification) -> str:
     return "\n".join(lines)
 
 
-def _png(fig: Any) -> str:
+def png_img(fig: Any, dpi: int = 90) -> str:
+    """A matplotlib figure as an inline ``<img>`` (PNG, base64), the figure closed."""
     import matplotlib.pyplot as plt
 
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
+    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
     plt.close(fig)
     return ("<img alt='figure' src='data:image/png;base64,"
             + base64.b64encode(buf.getvalue()).decode() + "'>")
@@ -118,7 +119,7 @@ def figures(ident: Identification) -> list[tuple[str, str]]:
         ax.set(xlabel="chamber pressure [bar]", ylabel="mass flow [g/s]",
                title="Flow map: samples (dots), identified Eq. 8 (lines), paper (dotted)")
         ax.legend(fontsize=7, ncol=2)
-        out.append(("Mass flow map (Sec. 2.3)", _png(fig)))
+        out.append(("Mass flow map (Sec. 2.3)", png_img(fig)))
     if ident.valve is not None:
         v = ident.valve
         f = np.linspace(1.0, max(v.top_frequency, 70.0), 400)
@@ -132,7 +133,7 @@ def figures(ident: Identification) -> list[tuple[str, str]]:
         a1.set(ylabel="gain u -> u_eq [V/V]", title="Valve frequency response (locked sweep)")
         a2.set(xlabel="frequency [Hz]", ylabel="phase [deg]")
         a1.legend(fontsize=8)
-        out.append(("Valve dynamics (Sec. 2.1, 2.4)", _png(fig)))
+        out.append(("Valve dynamics (Sec. 2.1, 2.4)", png_img(fig)))
     if ident.hysteresis is not None:
         h = ident.hysteresis
         fig, ax = plt.subplots(figsize=(6, 5))
@@ -144,7 +145,7 @@ def figures(ident: Identification) -> list[tuple[str, str]]:
         ax.set(xlabel="command u [V]", ylabel="jet-pipe position [mm] (from u_eq, Eq. 5)",
                title=f"Hysteresis loop: half-width {h.half_width:.3f} V")
         ax.legend(fontsize=8)
-        out.append(("Hysteresis (Sec. 2.2)", _png(fig)))
+        out.append(("Hysteresis (Sec. 2.2)", png_img(fig)))
     if ident.friction is not None and ident.friction.tests:
         fr = ident.friction
         fig, axes = plt.subplots(1, 4, figsize=(14, 3.6))
@@ -165,7 +166,7 @@ def figures(ident: Identification) -> list[tuple[str, str]]:
             ax.set(xlabel=f"per-test {q} [{FRICTION_UNITS[q]}]", ylabel="plane value")
         axes[0].legend(fontsize=6)
         fig.suptitle("Friction planes (Eq. 20-27) against the per-test values")
-        out.append(("Friction (Sec. 4.2)", _png(fig)))
+        out.append(("Friction (Sec. 4.2)", png_img(fig)))
     shown = [rp for rp in ident.replays if rp.kind == "validation"][:2]
     fric = [rp for rp in ident.replays if rp.kind == "friction"][:1]
     for rp in shown + fric:
@@ -175,7 +176,7 @@ def figures(ident: Identification) -> list[tuple[str, str]]:
             ax.plot(rp.t, y * 1e3, lw=1, ls="--" if label == "starting" else "-", label=label)
         ax.set(xlabel="time [s]", ylabel="position [mm]", title=f"Replay of {rp.name}")
         ax.legend(fontsize=8)
-        out.append((f"Replay: {rp.name}", _png(fig)))
+        out.append((f"Replay: {rp.name}", png_img(fig)))
     return out
 
 

@@ -4,12 +4,12 @@ self-contained HTML report (figures inlined as PNG)."""
 from __future__ import annotations
 
 import html
-import io
 import math
 from typing import Any
 
 import numpy as np
 
+from jetpipe_ros.identify.report import png_img
 from jetpipe_ros.identify.seal import (FORMS, Prepared, SealResult, measured_presliding,
                                        since_reversal)
 from jetpipe_ros.model.params import ModelParams
@@ -74,18 +74,6 @@ def prediction_csv(res: SealResult, prep: Prepared) -> str:
     return "t,F_friction_measured,F_friction_model\n" + "\n".join(rows) + "\n"
 
 
-def _png(fig: Any) -> str:
-    import base64
-
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=80, bbox_inches="tight")
-    plt.close(fig)
-    return ("<img alt='figure' src='data:image/png;base64,"
-            + base64.b64encode(buf.getvalue()).decode() + "'>")
-
-
 def loop_figure(res: SealResult, preps: list[Prepared]) -> Any:
     """Measured and modelled friction against velocity and against the displacement since
     the last reversal, one row per record (pressure), held-out moving samples."""
@@ -146,7 +134,7 @@ def html_report(results: list[SealResult], doc: dict[str, Any]) -> str:
         values = res.seal_fits[res.selected].values
         parts.append("<pre>" + html.escape("\n".join(f"{k}: {v:.5g}" for k, v in
                                                      values.items())) + "</pre>")
-        parts.append(_png(loop_figure(res, res.preps)))
+        parts.append(png_img(loop_figure(res, res.preps), dpi=80))
     parts.append("<h2>Notes</h2><pre>" + html.escape("\n".join(doc["notes"])) + "</pre>")
     parts.append("</body></html>")
     return "".join(parts)
