@@ -356,6 +356,20 @@ def test_cushion_balances_the_force_before_the_stop():
     assert abs(out[k.OUT_FRICTION]) <= abs(f_s) + 1e-6
 
 
+def test_load_spring_pulls_the_piston_back_until_friction_holds_it():
+    """Regulated at 4 / 4 bar (no pneumatic force), released 15 mm from where a 20 kN/m spring
+    is relaxed (300 N, above the breakaway): the piston slides back and comes to rest (it
+    creeps onto the breakaway boundary) where the spring's force has fallen between the
+    Coulomb and the breakaway friction."""
+    k_s, y_s = 2e4, -2e-3
+    spec = PlantSpec().with_effect("load_spring", stiffness=k_s, free_position=y_s)
+    out = _regulated(spec, 4e5, 4e5, y_s + 0.015).run(np.zeros(2000))[-1]
+    f_s, _, f_v, f_c = friction_parameters(PLANES, -1.0, 4e5, 4e5)
+    spring = k_s * (out[k.OUT_Y] - y_s)
+    assert abs(out[k.OUT_V]) < 1e-6
+    assert abs(f_c) <= spring <= abs(f_s) + f_v * abs(out[k.OUT_V]) + 1e-6
+
+
 def test_piston_accelerates_as_the_ode_with_its_mass():
     """Regulated at 6 / 4 bar, released at rest: y(t) is the solution of M v' = F_a - F_C -
     (F_S - F_C) exp(-(v / v_s)^2) - F_v v (solve_ivp) within 10 um, for the nominal 1 kg and
@@ -404,6 +418,21 @@ def test_second_order_sensor_is_its_transfer_function():
     assert np.abs(rows[:, k.OUT_P1_MEAS] - rows[:, k.OUT_P1]).max() > 1e4
 
 
+def test_position_filter_trails_a_steady_motion_by_two_time_constants():
+    """Regulated at 6 / 4 bar, the piston runs at its viscous speed; read through two 2 ms
+    stages, the position trails the true one by 2 tau v (the ramp error of 1 / (tau s + 1)^2),
+    and reads it exactly once at rest."""
+    tau = 2e-3
+    spec = PlantSpec().with_effect("position_filter", time_constant=tau)
+    rows = _regulated(spec, 6e5, 4e5, -0.02).run(np.zeros(60))
+    steady = rows[40:]
+    assert np.ptp(steady[:, k.OUT_V]) < 1e-3 * steady[0, k.OUT_V]
+    trail = steady[:, k.OUT_Y] - steady[:, k.OUT_Y_MEAS]
+    assert trail == pytest.approx(2 * tau * steady[:, k.OUT_V], rel=1e-3)
+    still = _regulated(spec, 4e5, 4e5, 0.01).run(np.zeros(200))[-1]
+    assert still[k.OUT_Y] == 0.01 and still[k.OUT_Y_MEAS] == pytest.approx(0.01, abs=1e-12)
+
+
 def test_noise_is_the_models_and_seeded():
     noisy = P.with_values({"sensors.noise": True, "sensors.seed": 4})
     a = Plant(PlantSpec(noisy)).run(np.zeros(2000))
@@ -429,7 +458,8 @@ def test_real_effects_sample_valid_parameters():
     rng = np.random.default_rng(1)
     assert set(REAL_EFFECTS) == set(EFFECT_PARAMS)
     unlisted = {n for n, e in REAL_EFFECTS.items() if e.listed == "unlisted"}
-    assert unlisted == {"null_offset", "pressure_dependent_gain", "end_stop_cushion"}
+    assert unlisted == {"null_offset", "pressure_dependent_gain", "end_stop_cushion",
+                        "load_spring", "position_filter"}
     for name, effect in REAL_EFFECTS.items():
         for _ in range(20):
             values = effect.sample(rng)

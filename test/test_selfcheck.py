@@ -90,8 +90,8 @@ def test_an_unlisted_truth_needs_its_subsystem():
     case = selfcheck.Case(0, "null_offset", "plant", {"null_offset": {"offset": 0.1}}, seed=1,
                           verdict="unlisted", verdict_subsystem="valve")
     assert case.correct
-    case.verdict_subsystem = "valve+chamber"  # the valve among those named
-    assert case.correct
+    case.verdict_subsystem = "valve+chamber"  # not placed: the valve among two
+    assert not case.correct
     case.verdict_subsystem = "mechanics"
     assert not case.correct
     case.verdict, case.verdict_subsystem = "none", "none"

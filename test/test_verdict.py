@@ -244,15 +244,3 @@ def test_a_pair_member_back_where_it_vanishes_is_found():
     assert vanished(joint(0.97e6)) == []
     single = fit("leakage:orifice", 0.1, np.zeros(3), **{"leakage:orifice": {"cross_area": 0.0}})
     assert vanished(single) == []
-
-
-def test_an_unlisted_gap_is_placed_by_the_replays_of_the_final_model():
-    """With no equation beyond noise, the subsystem of an unlisted gap comes from the
-    subsystem replays of the recalibrated model when there is one (the nominal model's mis-set
-    friction would point at the mechanics)."""
-    from jetpipe_ros.diagnosis.diagnose import _subsystem_of
-
-    nominal = {"valve_and_chambers": {"gap": 3.3}, "mechanics": {"gap": 5.9}}
-    final = {"valve_and_chambers": {"gap": 1.0}, "mechanics": {"gap": 0.4}}
-    assert _subsystem_of({"subsystems": nominal}) == "mechanics"
-    assert _subsystem_of({"subsystems": nominal, "subsystems_final": final}) == "valve+chamber"

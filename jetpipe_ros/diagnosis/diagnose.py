@@ -9,7 +9,8 @@ fit every candidate alone and on top of the recalibrated model, refit the most p
 with the calibration, and score everything on the held-out data; try pairs when one effect
 leaves a significant gap; cross-check, with the roles of the data exchanged, what the short
 holdout cannot confirm alone; decide which of calibration and effect the data need
-(:func:`verdict.settle`); write ``diagnosis.json``, ``report.html`` and ``augmented.yaml``. The
+(:func:`verdict.settle`); when no candidate explains the gap, place where it starts by
+experiments on the records (:mod:`placement`); write ``diagnosis.json``, ``report.html`` and ``augmented.yaml``. The
 outputs are written to a temporary directory and moved into place only when all three are
 complete.
 """
@@ -36,9 +37,10 @@ from jetpipe_ros.diagnosis.jobs import Fitter, Job
 from jetpipe_ros.diagnosis.localize import by_regime, frequency_response, position_error_pct
 from jetpipe_ros.diagnosis import residuals
 from jetpipe_ros.diagnosis.noise_floor import calibrate, twin
+from jetpipe_ros.diagnosis.placement import place, subsystem_gaps
 from jetpipe_ros.diagnosis.separation import (adopt, separating_experiment, stand_ins,
                                               words)
-from jetpipe_ros.diagnosis.prediction import HORIZON, persistence, predict
+from jetpipe_ros.diagnosis.prediction import HORIZON, persistence
 from jetpipe_ros.diagnosis.score import (METRIC, Score, difference_gap, predict_all, score,
                                          window_errors)
 from jetpipe_ros.diagnosis.verdict import (NOISE_GAP, Ranked, Settled, decide, needs_pairs,
@@ -244,35 +246,6 @@ def visibility(prepared: Prepared, nominal: ModelParams, base_preds, cand: Candi
                            for s in rec.signals()), prepared.scale)
 
 
-def subsystem_gaps(prepared: Prepared, nominal: ModelParams) -> dict:
-    """Gap of each subsystem replayed with its inputs held on the measurements."""
-    chambers = score(prepared, predict_all(nominal, prepared, None, "chambers"), None,
-                     ("p1", "p2"))
-    # The mechanics replay needs both pressures measured: it is driven by them.
-    mechanics = score(prepared, [predict(nominal, r, prepared.dt, "mechanics")
-                                 if not r.locked and r.measured("p1") and r.measured("p2")
-                                 else None for r in prepared.records], None, ("y",))
-    offsets = []
-    for rec in prepared.records:
-        if rec.regulated or not rec.measured("p1"):
-            continue
-        pred = predict(nominal, rec, prepared.dt, "chambers")
-        steady = np.abs(np.gradient(rec.p1, prepared.dt)) < 2e4
-        steady[: rec.t.size // 10] = False
-        steady &= rec.train | rec.holdout
-        if steady.sum() > 100:
-            offsets.append(float(np.median((rec.p1 - pred.p1)[steady])))
-    return {
-        "valve_and_chambers": {"driven_by": "measured command and piston motion",
-                               **chambers.to_json()},
-        "mechanics": {"driven_by": "measured chamber pressures", **mechanics.to_json()}
-        if mechanics.mse else None,
-        "sensors": {"steady_pressure_offset_pa": float(np.median(offsets)) if offsets else None,
-                    "noise": {"y_m": prepared.noise["y"], "p1_pa": prepared.noise["p1"],
-                              "p2_pa": prepared.noise["p2"]}},
-    }
-
-
 def diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams | None = None,
              workers: int = 2, quiet: bool = False, scheduler: str | None = None) -> dict:
     """Run the diagnosis on a dataset and write its outputs; return diagnosis.json's content.
@@ -397,8 +370,9 @@ def _diagnose(prepared: Prepared, out_dir: Path, nominal: ModelParams, cluster: 
             s for s in ("p1", "p2", "y") if s in prepared.sensors)),
         "equations": equations,
     }
-    if settled.unlisted and final is not None:
-        localization["subsystems_final"] = subsystem_gaps(prepared, augmented)
+    if settled.unlisted or not fits:
+        progress("placing the gap: experiments that hold one subsystem or one signal")
+        localization["placement"] = place(prepared, augmented, remainders)
     verdict = settled.verdict
     separating = None
     if settled.alternative is not None:
@@ -416,7 +390,7 @@ def _diagnose(prepared: Prepared, out_dir: Path, nominal: ModelParams, cluster: 
     if not fits:
         augmented = nominal
         result["verdict"].update(_no_fit(result["verdict"], aug_hold.gap, still.gap),
-                                 subsystem=_subsystem_of(localization))
+                                 subsystem=localization["placement"]["subsystem"])
     progress(f"writing {out_dir}")
     _write_outputs(out_dir, result, augmented, prepared, preds, remainders)
     progress(f"verdict: {result['verdict']['effect']} "
@@ -460,17 +434,6 @@ def _no_fit(verdict: dict, gap: float, still: float) -> dict:
                        f"spread, no better than holding each signal at its last measured value "
                        f"({still:.0f} %); no candidate can be the answer (the best was "
                        f"{verdict['effect']}: {verdict['reason']})")}
-
-
-def _subsystem_of(localization: dict) -> str:
-    """With no equation beyond noise: the subsystem whose replay with measured inputs (valve
-    and chambers driven by the measured motion, mechanics by the measured pressures) leaves the
-    larger gap, replayed on the final model (the recalibrated one, when the gap left is what
-    remains after recalibration: mis-set friction would otherwise point at the mechanics)."""
-    sub = localization.get("subsystems_final") or localization["subsystems"]
-    chambers = sub["valve_and_chambers"]["gap"]
-    mechanics = sub["mechanics"]["gap"] if sub["mechanics"] else 0.0
-    return "mechanics" if mechanics > chambers else "valve+chamber"
 
 
 def _forms(win: Ranked, ranking: Sequence[Ranked]) -> dict:
@@ -525,15 +488,15 @@ def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
     values = win.fit.effect_values() if win else {}
     missing = localization["equations"]["missing"] if settled.unlisted else None
     subsystem = ("+".join(dict.fromkeys(EFFECTS[e] for e in effects)) if win else
-                 (missing["subsystem"] if missing else _subsystem_of(localization))
-                 if settled.unlisted else "none")
+                 localization["placement"]["subsystem"] if settled.unlisted else "none")
     reason = settled.reason
     for row in swaps:
         if row["preferred"] in ("cannot tell", "partly") or (
                 row["preferred"] == "effect" and row["candidate"] != settled.final.name):
             reason += f"; {words(row)}"
     if settled.unlisted:
-        reason += f"; {residuals.describe(localization['equations'])}"
+        reason += (f"; it starts in the {subsystem}: {localization['placement']['words']}; "
+                   f"{residuals.describe(localization['equations'])}")
     verdict_json = {
         "effect": win.fit.effect if win else "unlisted" if settled.unlisted else "none",
         "effects": effects,

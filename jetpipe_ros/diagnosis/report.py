@@ -64,6 +64,34 @@ def ranking_figure(result: dict) -> str:
     return _figure_png(fig)
 
 
+def placement_figure(placement: dict) -> str:
+    """Where the gap starts (:mod:`placement`): the share of the held-out gap each one-signal
+    experiment removes, against the share that places a cause, and the gap each subsystem's
+    replay with measured inputs leaves."""
+    plt = _plt()
+    exps = placement["experiments"]
+    labels = [f"{e['signal']} sensor: lag, gain, offset" if e["subsystem"] == "sensors" else
+              "valve: null offset of the command" for e in exps]
+    removed = [100 * max(e["removed"], 0.0) for e in exps]
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(10, 0.4 * len(exps) + 1.6),
+                                 gridspec_kw={"width_ratios": [3, 2]})
+    colors = ["#1f77b4" if r >= 100 * placement["places_at"] else "#cccccc" for r in removed]
+    ax.barh(labels[::-1], removed[::-1], color=colors[::-1])
+    ax.axvline(100 * placement["places_at"], color="#d62728", ls="--", label="places the cause")
+    ax.set_xlim(0, 100)
+    ax.set_xlabel("held-out gap removed by changing this alone [%]")
+    ax.legend(loc="lower right", fontsize=8)
+    replays = placement["replays"]
+    names = ["valve + chambers\n(fed measured motion)", "mechanics\n(fed measured pressures)"]
+    gaps = [replays["valve_and_chambers"]["gap"],
+            replays["mechanics"]["gap"] if replays["mechanics"] else 0.0]
+    bx.bar(names, gaps, color=["#9ecae1", "#fdae6b"])
+    bx.set_ylabel("held-out gap of the replay [%]")
+    bx.set_title(f"answer: {placement['subsystem']}", fontsize=10)
+    fig.tight_layout()
+    return _figure_png(fig)
+
+
 def calibration_figure(result: dict) -> str:
     """Each calibration knob's factor against nominal [%]: the final model's and the
     recalibration's alone, with the search range."""
@@ -421,6 +449,14 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
         "<h3>By equation (what the augmented model's equations leave, all data)</h3>",
         f"<p>{html.escape(equation_words(result))}.</p>",
         equations_figure(result, remainders),
+        *(["<h3>Where it starts (experiments on the records with the final model)</h3>",
+           f"<p>{html.escape(loc['placement']['words'])}: the gap starts in the "
+           f"<b>{html.escape(loc['placement']['subsystem'])}</b>. Each experiment changes one "
+           f"thing the model is told and fits it on the training data; a change of one signal "
+           f"that removes at least {100 * loc['placement']['places_at']:.0f} % of the held-out "
+           f"gap places the cause there, else the subsystem whose replay with measured inputs "
+           f"still misses does.</p>", placement_figure(loc["placement"])]
+          if "placement" in loc else []),
         "<h3>By signal (held out, %)</h3>",
         _table(sig_rows, ["signal", "nominal", "augmented"]),
         "<h3>By subsystem (nominal model, all data, %)</h3>",

@@ -11,8 +11,9 @@ of two sources:
   energy balance with wall exchange, ISO 6358 leaks, three weighted plays, elasto-plastic
   friction, a second-order sensor with gain error and offsets, a continuous delay, a
   second-order lag, a drooping supply, extra mass) and include effects on no list (a valve null
-  offset, a pressure-dependent valve gain, end-stop cushioning: the right answer is
-  ``unlisted`` with their subsystem); pairs of a strong and a weak effect;
+  offset, a pressure-dependent valve gain, end-stop cushioning, a load spring, a position
+  transducer's filter: the right answer is ``unlisted`` placed in their subsystem); pairs of a
+  strong and a weak effect;
 - ``model``: the simulator's own effects (the candidates' forms, plus a multi-element
   hysteresis), the check of earlier versions, kept for comparison.
 
@@ -20,7 +21,8 @@ It simulates the default campaign with sensor noise and runs the diagnosis on th
 directory alone. The truth stays here: the diagnosis reads only what a user would give it. Then
 the verdicts are scored: top-1 accuracy (an effect too small to show in the experiments counts as
 correctly answered by ``none``; a parameters-only case must be answered ``none`` with the
-calibration significant; an unlisted truth must be answered ``unlisted`` naming its subsystem),
+calibration significant; an unlisted truth must be answered ``unlisted`` placed in its
+subsystem),
 a confusion matrix, the recovery of the fitted parameters and of the calibration, and the
 held-out shrinkage; how sure these figures are: top-1 accuracy per truth kind and per expected
 answer with Wilson score intervals, the shrinkage's quantiles and histogram.
@@ -217,12 +219,12 @@ class Case:
     @property
     def correct(self) -> bool:
         """The verdict names the truth (or says none for an invisible truth); an unlisted
-        truth must be answered ``unlisted`` with its subsystem among those named; a
+        truth must be answered ``unlisted`` placed in its subsystem (that one alone); a
         parameters-only case must also be recalibrated, unless its deviations do not show."""
         got = "+".join(sorted(self.verdict.split("+"))) if self.verdict != "none" else "none"
         named = got == self.truth or (not self.visible and got == "none")
         if got == "unlisted" and named:
-            named = set(self.truth_subsystem.split("+")) <= set(self.verdict_subsystem.split("+"))
+            named = self.verdict_subsystem == self.truth_subsystem
         if self.parameters_only and self.deviated:
             return named and self.calibrated
         return named

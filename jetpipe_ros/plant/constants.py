@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -17,7 +18,8 @@ from jetpipe_ros.plant.valve import delayed_chain
 LAG = 17  #: extra valve lag: output [V], its rate [V/s]
 SENSOR1 = 19  #: chamber 1 transducer: reading [Pa], its rate [Pa/s]
 SENSOR2 = 21  #: chamber 2 transducer
-PLAY = 23  #: the N_PLAY play operators' outputs [V]
+POSITION = 23  #: position transducer: its second stage's reading [m], its first stage's [m]
+PLAY = 25  #: the N_PLAY play operators' outputs [V]
 N_PLAY = 3
 VALVE = PLAY + N_PLAY  #: first of the valve chain's states
 
@@ -72,12 +74,16 @@ class PlantConstants(NamedTuple):
     cushion_length: float  #: [m]; 0 = no cushion
     cushion_k: float  #: [N/m]
     cushion_c: float  #: [N s/m]
+    spring_k: float  #: load spring stiffness [N/m]; 0 = no spring
+    spring_y0: float  #: where the spring is relaxed [m]
     sensor: bool  #: second-order transducers on
     sensor_a: np.ndarray
     sensor_b: np.ndarray
     sensor_gain: float  #: 1 + gain error
     sensor_offset_1: float  #: [Pa]
     sensor_offset_2: float  #: [Pa]
+    position_filter: bool  #: two-stage position transducer on
+    position_decay: float  #: exp(-h / tau) of each stage over a sub-step
     sigma_p: float  #: pressure noise [Pa]
     sigma_y: float  #: position noise [m]
 
@@ -108,6 +114,8 @@ def build_constants(spec: PlantSpec) -> PlantConstants:
                                                 "damping_velocity": 1.0,
                                                 "breakaway_fraction": 0.5})
     cushion = e.get("end_stop_cushion", {"length": 0.0, "stiffness": 0.0, "damping": 0.0})
+    spring = e.get("load_spring", {"stiffness": 0.0, "free_position": 0.0})
+    position = e.get("position_filter")
     sensor = e.get("sensor_second_order")
     sensor_a, sensor_b = second_order_lag(sensor["natural_frequency"], sensor["damping_ratio"],
                                           h) if sensor else (np.zeros((2, 2)), np.zeros(2))
@@ -144,10 +152,13 @@ def build_constants(spec: PlantSpec) -> PlantConstants:
         v_damp=friction["damping_velocity"], z_fraction=friction["breakaway_fraction"],
         cushion_length=cushion["length"], cushion_k=cushion["stiffness"],
         cushion_c=cushion["damping"],
+        spring_k=spring["stiffness"], spring_y0=spring["free_position"],
         sensor=sensor is not None, sensor_a=sensor_a, sensor_b=sensor_b,
         sensor_gain=1.0 + (sensor["gain_error"] if sensor else 0.0),
         sensor_offset_1=sensor["offset_1"] if sensor else 0.0,
         sensor_offset_2=sensor["offset_2"] if sensor else 0.0,
+        position_filter=position is not None,
+        position_decay=math.exp(-h / position["time_constant"]) if position else 0.0,
         sigma_p=p["sensors.pressure_sigma"] if noise else 0.0,
         sigma_y=p["sensors.position_sigma"] if noise else 0.0,
     )

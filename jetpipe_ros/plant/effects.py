@@ -4,7 +4,7 @@ named by (docs/effects.md) or ``unlisted``, and a sampler of realistic sizes.
 Sizes are the typical sizes of docs/effects.md read through each form (e.g. a transducer whose
 equivalent lag 2 zeta / w_n falls in 1-13 ms, a leak of a few % of the valve's rated flow), and
 for the effects on no list, sizes that matter on a real bench (a null offset of 0.05-0.2 V, a
-cushion of 2-4 mm).
+cushion of 2-4 mm, a load spring of 3-20 kN/m, a position transducer lagging 2-8 ms).
 """
 
 from __future__ import annotations
@@ -84,6 +84,10 @@ REAL_EFFECTS: dict[str, RealEffect] = {
         "offset": _signed(r, 0.05, 0.2)}),
     "pressure_dependent_gain": RealEffect("valve", "unlisted", lambda r: {
         "slope": _signed(r, 0.2, 0.5)}),
+    "load_spring": RealEffect("mechanics", "unlisted", lambda r: {
+        "stiffness": _log_uniform(r, 3e3, 2e4), "free_position": float(r.uniform(-0.01, 0.01))}),
+    "position_filter": RealEffect("sensors", "unlisted", lambda r: {
+        "time_constant": 0.5 * float(r.uniform(2e-3, 8e-3))}),
     "end_stop_cushion": RealEffect("mechanics", "unlisted", lambda r: {
         "length": float(r.uniform(2e-3, 4e-3)), "stiffness": _log_uniform(r, 2e5, 1e6),
         "damping": float(r.uniform(2e3, 8e3))}),

@@ -13,7 +13,8 @@ Per sub-step of length h = dt / substeps (8 by default, the model integrates in 
    inelastic end stops (:mod:`mechanics`);
 4. the chambers' gas follows the volume change (isothermal, or isentropic then exact wall heat
    exchange) and the pressures are read from mass (and energy) and volume;
-5. the pressure transducers advance on the pressures held over the sub-step (:mod:`sensors`).
+5. the transducers advance on the pressures held over the sub-step and the position's mean over
+   it (:mod:`sensors`).
 
 With the regulators on (``chamber.regulated``) the pressures stay where they are and the gas
 mass follows the volume; with the piston locked it stays, at zero velocity and friction.
@@ -35,7 +36,7 @@ from jetpipe_ros.plant.constants import (DRAWN, E1, E2, FRICTION, HEAD, LAG, M1,
                                          UEQ, VALVE, V, Y, Z, PlantConstants)
 from jetpipe_ros.plant.linear import second_order_step
 from jetpipe_ros.plant.mechanics import bristles, stick_slip
-from jetpipe_ros.plant.sensors import measure
+from jetpipe_ros.plant.sensors import filter_position, measure
 from jetpipe_ros.plant.valve import valve_inflow, weighted_plays
 
 
@@ -147,7 +148,7 @@ def _friction(c: PlantConstants, x: np.ndarray, f: float, damping: float,
 def _mechanics(c: PlantConstants, x: np.ndarray, f_load: float, h: float) -> None:
     """Advance piston velocity and position one sub-step (mechanics docstring)."""
     y = x[Y]
-    f_a = c.area * (x[P1] - x[P2]) - f_load
+    f_a = c.area * (x[P1] - x[P2]) - f_load - c.spring_k * (y - c.spring_y0)
     # The gas spring implicit too: S (p1 - p2) falls by k_gas dy as the piston moves dy = h w,
     # k_gas = n S^2 (p1 / V1 + p2 / V2), n = 1 isothermal, gamma isentropic.
     gas = 0.0
@@ -155,6 +156,7 @@ def _mechanics(c: PlantConstants, x: np.ndarray, f_load: float, h: float) -> Non
         vol1, vol2 = chamber_volumes(y, c.area, c.v01, c.v02)
         gas = (GAMMA_AIR if c.thermal else 1.0) * c.area * c.area * \
             (x[P1] / vol1 + x[P2] / vol2) * h
+    gas += c.spring_k * h  # the load spring implicit as well
     depth = abs(y) - (c.y_max - c.cushion_length)
     side = math.copysign(1.0, y)
     if c.cushion_length > 0.0 and depth > 0.0:
@@ -203,6 +205,7 @@ def advance(c: PlantConstants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
             x[UEQ] = u_eq
             p1_held = x[P1]
             p2_held = x[P2]
+            y_held = x[Y]
             vol1, vol2 = chamber_volumes(x[Y], c.area, c.v01, c.v02)
             target = c.supply_set - c.supply_droop * x[DRAWN]
             x[SUPPLY] = target + (x[SUPPLY] - target) * supply_decay
@@ -240,6 +243,8 @@ def advance(c: PlantConstants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
             if c.sensor:
                 second_order_step(c.sensor_a, c.sensor_b, x, SENSOR1, p1_held)
                 second_order_step(c.sensor_a, c.sensor_b, x, SENSOR2, p2_held)
+            if c.position_filter:
+                filter_position(x, 0.5 * (y_held + x[Y]), c.position_decay)
         x[STEP] += 1.0
         measure(c, x, noise[k], out[k])
     x[VALVE:VALVE + nv] = xv

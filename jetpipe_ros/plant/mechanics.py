@@ -1,6 +1,6 @@
 """The plant's piston: Eq. 14 with the pinned friction, stick-slip, bristles and end-stop cushions.
 
-M dv/dt = F_a - F_f - F_cushion, F_a = S (p1 - p2) - F_L [N], M the moving mass [kg] (the
+M dv/dt = F_a - F_f - F_cushion, F_a = S (p1 - p2) - F_L - k_s (y - y_s) [N], M the moving mass [kg] (the
 nominal plus ``extra_mass`` [kg], a load or fixture on the rod). The friction parameters are the
 pinned planes (``friction_parameters``), Eq. 18's Stribeck curve (``stribeck_force``) and Eq. 15
 at rest (``static_friction``). Each sub-step of length h is implicit Euler in the velocity w,
@@ -28,6 +28,8 @@ the gas spring included (over the sub-step S (p1 - p2) falls by k_gas h w, k_gas
   end stop a spring-damper pushes the piston back, F = max(k_c e + c_c de/dt, 0) with the
   penetration e = |y| - (y_max - d_c) (k_c [N/m], c_c [N s/m]), implicit in v. The inelastic
   stop at +-y_max stays behind it.
+- **Load spring** (``load_spring``, on no list): a spring between the rod and the frame, k_s
+  [N/m], relaxed at y_s [m], in F_a above and implicit in v like the gas spring.
 """
 
 from __future__ import annotations

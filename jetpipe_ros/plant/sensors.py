@@ -10,6 +10,14 @@
   sub-step), so a pressure held over whole samples is read exactly as
   ``scipy.signal.lfilter`` of the same transfer function discretised at the sample time. The
   model's candidate is a first-order lag with one bias and a drift for both sensors.
+- **Position transducer with a filter** (``position_filter``, on no list): the reading passes
+  two equal first-order stages in series (a conditioning filter, critically damped)
+
+      tau s_a' = y - s_a,   tau s_b' = s_a - s_b,   y_meas = s_b
+
+  with tau [s] (its lag at low frequency is 2 tau). Each stage is exact for its input held over
+  the sub-step at its mean (the position's, the first stage's at the sub-step's ends). The model has no position sensor
+  dynamics at all.
 - **Noise**: as the model's, Gaussian, position sigma 15 um and pressure sigma 500 Pa by
   default (``sensors.*`` of the model parameters), from ``numpy.random.default_rng(seed)``
   drawn as the model draws it, added after the sensor dynamics.
@@ -23,8 +31,18 @@ from numba import njit
 from jetpipe_ros.model.kernel import (OUT_FORCE, OUT_FRICTION, OUT_P1, OUT_P1_MEAS, OUT_P2,
                                      OUT_P2_MEAS, OUT_T, OUT_U, OUT_UEQ, OUT_V, OUT_Y,
                                      OUT_Y_MEAS)
-from jetpipe_ros.plant.constants import (FRICTION, P1, P2, SENSOR1, SENSOR2, STEP, UCMD, UEQ,
-                                         V, Y, PlantConstants)
+from jetpipe_ros.plant.constants import (FRICTION, P1, P2, POSITION, SENSOR1, SENSOR2, STEP,
+                                         UCMD, UEQ, V, Y, PlantConstants)
+
+
+@njit(cache=True, error_model="numpy")
+def filter_position(x: np.ndarray, y: float, decay: float) -> None:
+    """Advance the position transducer's two stages one sub-step on the position ``y`` [m]
+    (its mean over the sub-step); ``decay`` = exp(-h / tau)."""
+    start = x[POSITION + 1]
+    x[POSITION + 1] = y + (start - y) * decay
+    mean = 0.5 * (start + x[POSITION + 1])
+    x[POSITION] = mean + (x[POSITION] - mean) * decay
 
 
 @njit(cache=True, error_model="numpy")
@@ -40,7 +58,7 @@ def measure(c: PlantConstants, x: np.ndarray, noise: np.ndarray, out: np.ndarray
     out[OUT_FRICTION] = x[FRICTION]
     out[OUT_FORCE] = c.area * (x[P1] - x[P2])
     out[OUT_UEQ] = x[UEQ]
-    out[OUT_Y_MEAS] = x[Y] + c.sigma_y * noise[0]
+    out[OUT_Y_MEAS] = (x[POSITION] if c.position_filter else x[Y]) + c.sigma_y * noise[0]
     if c.sensor:
         out[OUT_P1_MEAS] = c.sensor_gain * x[SENSOR1] + c.sensor_offset_1 + c.sigma_p * noise[1]
         out[OUT_P2_MEAS] = c.sensor_gain * x[SENSOR2] + c.sensor_offset_2 + c.sigma_p * noise[2]

@@ -82,6 +82,16 @@ EFFECT_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
     "pressure_dependent_gain": (
         _p("slope", 0.3, "Flow gain slope k: factor 1 + k (p - p_mid) / p_s", "", -0.9, 0.9),
     ),
+    "load_spring": (
+        _p("stiffness", 8e3, "Spring stiffness k_s between the rod and the frame", "N/m",
+           0.0, 1e7),
+        _p("free_position", 0.0, "Piston position y_s where the spring is relaxed", "m",
+           -0.5, 0.5),
+    ),
+    "position_filter": (
+        _p("time_constant", 2e-3, "Time constant tau of each of the position transducer's "
+           "two first-order stages (its lag is 2 tau)", "s", 1e-5, 0.1),
+    ),
     "end_stop_cushion": (
         _p("length", 3e-3, "Cushioned length d_c before each end stop", "m", 1e-4, 0.02),
         _p("stiffness", 5e5, "Cushion stiffness k_c", "N/m", 1e3, 1e8),
