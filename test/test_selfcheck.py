@@ -86,6 +86,25 @@ def test_an_invisible_truth_accepts_none():
     assert not case.correct
 
 
+def test_visibility_is_graded_against_the_sensors_noise(tmp_path):
+    """The grader's own rule: a 2 kPa offset of the chamber 1 transducer is 4 of the pressure
+    sensor's 500 Pa standard deviations from the bench without it (locked at the valve's null
+    equilibrium, so the pressures hold still), whatever the diagnosis counts as beyond
+    noise."""
+    t = np.arange(2000) * 1e-3
+    data = np.column_stack([t, np.zeros_like(t), np.zeros_like(t), np.full_like(t, 4e5),
+                            np.full_like(t, 4e5)])
+    np.savetxt(tmp_path / "charge.csv", data, delimiter=",", header="t,u,y,p1,p2",
+               comments="")
+    (tmp_path / "dataset.yaml").write_text(
+        "experiments:\n  - {file: charge.csv, piston: locked}\n")
+    bench = PlantSpec()
+    truth = bench.with_effect("sensor_second_order", natural_frequency=1e5, damping_ratio=1.0,
+                              gain_error=0.0, offset_1=2e3, offset_2=0.0)
+    assert selfcheck.signature(truth, bench, tmp_path) == pytest.approx(4.0, rel=1e-3)
+    assert selfcheck.signature(bench, bench, tmp_path) == 0.0
+
+
 def test_an_unlisted_truth_needs_its_subsystem():
     case = selfcheck.Case(0, "null_offset", "plant", {"null_offset": {"offset": 0.1}}, seed=1,
                           verdict="unlisted", verdict_subsystem="valve")
@@ -172,7 +191,8 @@ def test_selfcheck_datasets_are_the_default_campaign(tmp_path):
                                                        "effect"))
         for csv in root.glob("*.csv"):
             header = csv.read_text().split("\n", 1)[0].split(",")
-            assert set(header) <= {"t", "u", "y", "p1", "p2", "v", "f_load", "setpoint"}, csv
+            # no velocity: no rig measures it, and the simulation's would be the truth's
+            assert set(header) <= {"t", "u", "y", "p1", "p2", "f_load", "setpoint"}, csv
         prep = prepare(read_dataset(root))
         assert [r.name for r in prep.records] == [e.name
                                                   for e in default_campaign().experiments]

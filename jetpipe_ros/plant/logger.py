@@ -12,6 +12,9 @@ otherwise. Each logger here rewrites a recorded dataset directory as one of them
 - ``one_pressure``: a bench with one pressure sensor (chamber 1): column ``p2`` dropped;
 - ``position_only``: no pressure sensors: ``p1`` and ``p2`` dropped.
 
+Every one of them, the package's own included, logs no velocity (:func:`without_velocity`): a
+rig has no sensor for it.
+
 This is the self-check's "real" logger: written apart from the reader that corrects these
 artefacts (:mod:`jetpipe_ros.dataset`, :mod:`jetpipe_ros.diagnosis.alignment`), with the csv
 module and its own ``dataset.yaml`` edit, so the check is not the reader against itself. Other
@@ -103,6 +106,12 @@ def _drop(columns: tuple[str, ...]) -> Callable[[Path, np.random.Generator], Non
 
 one_pressure = _drop(("p2",))
 position_only = _drop(("p1", "p2"))
+
+
+def without_velocity(root: Path) -> None:
+    """Drop column ``v`` (the simulation's true velocity) from every CSV at ``root``: no rig
+    measures it, and every logger starts from this."""
+    _drop(("v",))(Path(root), np.random.default_rng(0))
 
 #: Logger name -> rewrite of a dataset directory in place.
 LOGGERS: dict[str, Callable[[Path, np.random.Generator], None]] = {
