@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 
 from jetpipe_ros.dataset import read_dataset
-from jetpipe_ros.diagnosis import diagnose
+from jetpipe_ros.workflows import diagnose
 from jetpipe_ros.campaign import campaign_dataset
 from jetpipe_ros.model import ModelParams
 

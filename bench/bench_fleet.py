@@ -23,11 +23,11 @@ import tempfile
 import time
 from pathlib import Path
 
-from jetpipe_ros.diagnosis import diagnose
+from jetpipe_ros.workflows import diagnose
 from jetpipe_ros.campaign import campaign_dataset
-from jetpipe_ros.diagnosis.cluster import Cluster
-from jetpipe_ros.diagnosis.fleet import run_fleet
-from jetpipe_ros.diagnosis.selfcheck import run_selfcheck
+from jetpipe_ros.workflows.cluster import Cluster
+from jetpipe_ros.workflows.fleet import run_fleet
+from jetpipe_ros.workflows.selfcheck import run_selfcheck
 from jetpipe_ros.model import ModelParams
 
 

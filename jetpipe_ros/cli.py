@@ -24,7 +24,7 @@ from jetpipe_ros.model import ParameterError
 COMMANDS = (
     "jetpipe_ros.replay",
     "jetpipe_ros.bag.export",
-    "jetpipe_ros.diagnosis.cli",
+    "jetpipe_ros.workflows.cli",
     "jetpipe_ros.identify.cli",
     "jetpipe_ros.twin.cli",
     "jetpipe_ros.identify.seal_cli",

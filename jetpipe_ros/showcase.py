@@ -141,7 +141,7 @@ def plot_square_waves(data: Dataset, out: Path) -> Path:
 
 def diagnose_gap(dataset: Path, out: Path) -> dict:
     """Step 6: the sim-to-real gap diagnosis of the recorded dataset, judged against the truth."""
-    from jetpipe_ros.diagnosis.diagnose import diagnose
+    from jetpipe_ros.workflows.diagnose import diagnose
 
     print("Diagnosing the gap between the nominal model and the recording (jetpipe diagnose) ...")
     result = diagnose(dataset, out)

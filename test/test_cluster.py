@@ -14,9 +14,9 @@ from distributed import LocalCluster
 
 from jetpipe_ros.cli import main
 from jetpipe_ros.dataset import DatasetError
-from jetpipe_ros.diagnosis import selfcheck
-from jetpipe_ros.diagnosis.cluster import WORKER_CONFIG
-from jetpipe_ros.diagnosis.fleet import dataset_dirs, names_of
+from jetpipe_ros.workflows import selfcheck
+from jetpipe_ros.workflows.cluster import WORKER_CONFIG
+from jetpipe_ros.workflows.fleet import dataset_dirs, names_of
 from jetpipe_ros.model import ModelParams
 from test_diagnosis import make_dataset
 

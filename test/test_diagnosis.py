@@ -14,7 +14,7 @@ from scipy.signal import chirp
 
 from jetpipe_ros.cli import main
 from jetpipe_ros.dataset import DatasetError, Entry, read_dataset, write_dataset
-from jetpipe_ros.diagnosis import diagnose
+from jetpipe_ros.workflows import diagnose
 from jetpipe_ros.diagnosis.data import noise_level, prepare
 from jetpipe_ros.model import ModelParams, load_params, simulate
 
@@ -245,7 +245,7 @@ def test_bad_datasets_get_clear_errors_and_leave_no_output(tmp_path, capsys, mon
         raise AssertionError("the cluster started before the dataset was read")
 
     # The default --jobs: the dataset's error comes before any worker is started.
-    monkeypatch.setattr(sys.modules["jetpipe_ros.diagnosis.diagnose"], "Cluster", no_cluster)
+    monkeypatch.setattr(sys.modules["jetpipe_ros.workflows.diagnose"], "Cluster", no_cluster)
     assert main(["diagnose", str(tmp_path / "data"), "--out", str(out), "--quiet"]) == 2
     assert "sweep.csv: line 101, column 'p1'" in capsys.readouterr().err
     assert not out.exists()

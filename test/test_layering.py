@@ -10,14 +10,16 @@ PACKAGE = Path(__file__).resolve().parent.parent / "jetpipe_ros"
 
 #: Lowest first. A module may import its own subpackage and anything in a lower layer.
 LAYERS = (
-    # atomic writes and strict JSON/YAML; where the data files are; CLI argument types
-    ("fileio", "package_data", "arguments", "children"),
+    # atomic writes and strict JSON/YAML; where the data files are; CLI argument types; child
+    # processes; report figures
+    ("fileio", "package_data", "arguments", "children", "figures"),
     ("model",),  # the physics
     ("dataset",),  # data I/O, checked against the model's limits
     ("control",),  # the PID law
     ("campaign", "replay"),  # plans, signals, offline runner; replaying a CSV
     ("plant",),  # a stand-in for real hardware written apart from the model's effects
     ("identify", "diagnosis", "bag"),  # the paper's procedures; the gap diagnosis; bags
+    ("workflows",),  # running and judging the diagnosis: cluster, report, fleet, selfcheck
     ("twin",),  # the model beside the hardware: live gap, capture, trend
     ("nodes",),  # ROS 2 shells
     ("cli", "showcase", "showcase_twin"),  # entry points
@@ -61,4 +63,14 @@ def test_imports_point_down_and_only_nodes_import_ros():
             optional_index = group == "package_data" and parts[0] == "ament_index_python"
             if parts[0] in ROS and group != "nodes" and not optional_index:
                 wrong.append(f"{where} imports ROS ({name}); only nodes may")
+    assert wrong == []
+
+
+def test_the_diagnosis_neither_runs_itself_nor_renders():
+    """The diagnosis (data, candidates, calibration, fits, scores, verdict) is apart from
+    running and judging it: no Dask, no figures, no plant, nothing of ``workflows``."""
+    outward = ("distributed", "dask", "matplotlib", "jetpipe_ros.plant", "jetpipe_ros.workflows")
+    wrong = [f"{path.relative_to(PACKAGE.parent)} imports {name}"
+             for group, path in _modules() if group == "diagnosis"
+             for name in _imports(path) if name.startswith(outward)]
     assert wrong == []

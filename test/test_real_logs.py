@@ -12,7 +12,7 @@ import yaml
 
 from jetpipe_ros.campaign import default_campaign, run_campaign_offline
 from jetpipe_ros.dataset import read_dataset
-from jetpipe_ros.diagnosis import diagnose
+from jetpipe_ros.workflows import diagnose
 from jetpipe_ros.diagnosis.alignment import Z_OFFSET, align, controller_reaction
 from jetpipe_ros.diagnosis.data import prepare
 from jetpipe_ros.model import ModelParams, load_params

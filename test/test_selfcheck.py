@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from jetpipe_ros.dataset import Entry, write_dataset
-from jetpipe_ros.diagnosis import selfcheck
+from jetpipe_ros.workflows import selfcheck
 from jetpipe_ros.diagnosis.calibration import CALIBRATION
 from jetpipe_ros.model import ModelParams, simulate
 from jetpipe_ros.model.params import end_stop_volumes

@@ -17,7 +17,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 from jetpipe_ros.campaign import default_campaign, run_campaign_offline  # noqa: E402
 from jetpipe_ros.dataset import read_dataset  # noqa: E402
-from jetpipe_ros.diagnosis import diagnose  # noqa: E402
+from jetpipe_ros.workflows import diagnose  # noqa: E402
 from jetpipe_ros.model import ModelParams, load_params, simulate  # noqa: E402
 
 HERE = Path(__file__).resolve().parent

@@ -1,39 +1,37 @@
-"""``jetpipe diagnose``: where the model departs from the measurements, whether its nominal
-parameters are off, which unmodelled effect causes the rest, and how far the gap shrinks once
-both are corrected (docs/diagnosis.md).
+"""The diagnosis of one dataset: where the model departs from the measurements, whether its
+nominal parameters are off, which unmodelled effect causes the rest, and how far the gap shrinks
+once both are corrected (docs/diagnosis.md).
 
-Steps, each reported as progress: read and split the dataset; score the nominal model and locate
-its gap (signals, subsystems, regimes, frequency bands); check which candidates the experiments
-could show at all; recalibrate the nominal parameters (:mod:`calibration`) on the training data;
-fit every candidate alone and on top of the recalibrated model, refit the most promising jointly
-with the calibration, and score everything on the held-out data; try pairs when one effect
-leaves a significant gap; cross-check, with the roles of the data exchanged, what the short
-holdout cannot confirm alone; decide which of calibration and effect the data need
-(:func:`verdict.settle`); when no candidate explains the gap, place where it starts by
-experiments on the records (:mod:`placement`); write ``diagnosis.json``, ``report.html`` and ``augmented.yaml``. The
-outputs are written to a temporary directory and moved into place only when all three are
-complete.
+Steps, each reported as progress: prepare and split the records and measure their time base;
+score the nominal model and locate its gap (signals, subsystems, regimes, frequency bands); check
+which candidates the experiments could show at all; recalibrate the nominal parameters
+(:mod:`calibration`) on the training data; fit every candidate alone and on top of the
+recalibrated model, refit the most promising jointly with the calibration, and score everything
+on the held-out data; try pairs when one effect leaves a significant gap; cross-check, with the
+roles of the data exchanged, what the short holdout cannot confirm alone; decide which of
+calibration and effect the data need (:func:`verdict.settle`); when no candidate explains the
+gap, place where it starts by experiments on the records (:mod:`placement`). The result is
+:class:`Diagnosis`: ``diagnosis.json``'s content and what its report draws. The fits run on the
+:class:`~jetpipe_ros.diagnosis.jobs.Workers` the caller gives; reading a dataset directory,
+starting a cluster and writing the outputs are :mod:`jetpipe_ros.workflows.diagnose`'s.
 """
 
 from __future__ import annotations
 
-import sys
-import time
 from collections.abc import Callable, Mapping, Sequence
-from pathlib import Path
+from dataclasses import dataclass
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from jetpipe_ros.dataset import read_dataset
+from jetpipe_ros.dataset import Dataset
 from jetpipe_ros.diagnosis import calibration
 from jetpipe_ros.diagnosis.alignment import Alignment, align
 from jetpipe_ros.diagnosis.calibration import CALIBRATION
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate, effect_of
-from jetpipe_ros.diagnosis.cluster import Cluster
 from jetpipe_ros.diagnosis.data import Prepared, prepare, swapped
 from jetpipe_ros.diagnosis.fit import BUDGET, Fit, stacked, uncertainty
-from jetpipe_ros.diagnosis.jobs import Fitter, Job
+from jetpipe_ros.diagnosis.jobs import IN_PROCESS, Fitter, Job, Workers
 from jetpipe_ros.diagnosis.localize import by_regime, frequency_response, position_error_pct
 from jetpipe_ros.diagnosis import residuals
 from jetpipe_ros.diagnosis.noise_floor import calibrate, twin
@@ -45,11 +43,9 @@ from jetpipe_ros.diagnosis.score import (METRIC, Score, difference_gap, predict_
                                          window_errors)
 from jetpipe_ros.diagnosis.verdict import (NOISE_GAP, Ranked, Settled, decide, needs_pairs,
                                            paired_t, rank, settle)
-from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError
-from jetpipe_ros.model.limits import Limits
+from jetpipe_ros.model import EFFECTS, ModelParams
 
 SCHEMA = "jetpipe.diagnosis/2"
-OUTPUTS = ("diagnosis.json", "report.html", "augmented.yaml")
 #: A candidate is refitted jointly with the calibration knobs only when it removes at least
 #: this fraction of the noise variance from the training error, alone or on the recalibrated
 #: model (an effect at the visibility limit, a gap of NOISE_GAP, removes about four times the
@@ -63,17 +59,15 @@ JOINT_BUDGET = 120
 CAL = CALIBRATION.name
 
 
-class Progress:
-    """Progress lines on stderr with elapsed time."""
+@dataclass
+class Diagnosis:
+    """What the diagnosis of one dataset found, and what its report draws."""
 
-    def __init__(self, quiet: bool = False) -> None:
-        self.quiet = quiet
-        self.start = time.perf_counter()
-
-    def __call__(self, message: str) -> None:
-        if not self.quiet:
-            print(f"[{time.perf_counter() - self.start:6.1f} s] {message}", file=sys.stderr,
-                  flush=True)
+    result: dict  #: diagnosis.json's content
+    augmented: ModelParams  #: the model augmented.yaml holds (the nominal one if none fits)
+    prepared: Prepared  #: the records as diagnosed (split, time base corrected)
+    predictions: dict  #: "nominal" and "augmented" predictions of every record
+    remainders: dict  #: what each equation of the augmented model leaves, by equation
 
 
 def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit,
@@ -246,21 +240,13 @@ def visibility(prepared: Prepared, nominal: ModelParams, base_preds, cand: Candi
                            for s in rec.signals()), prepared.scale)
 
 
-def diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams | None = None,
-             workers: int = 2, quiet: bool = False, scheduler: str | None = None) -> dict:
-    """Run the diagnosis on a dataset and write its outputs; return diagnosis.json's content.
-
-    The candidate fits run on ``workers`` local Dask worker processes (1: in this process), or
-    on the Dask cluster at ``scheduler`` / ``DASK_SCHEDULER_ADDRESS`` (:class:`Cluster`). The
-    dataset is read, and ``out_dir`` checked, before the cluster starts: bad input fails at
-    once."""
-    progress = Progress(quiet)
-    nominal = params if params is not None else ModelParams()
-    out_dir = Path(out_dir)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise ParameterError(f"--out {out_dir}: exists and is not a directory")
-    progress(f"reading {dataset_dir}")
-    dataset = read_dataset(dataset_dir, limits=Limits.from_params(nominal))
+def diagnose_dataset(dataset: Dataset, nominal: ModelParams | None = None,
+                     workers: Workers = IN_PROCESS,
+                     progress: Callable[[str], None] = lambda message: None) -> Diagnosis:
+    """Diagnose ``dataset`` (:func:`jetpipe_ros.dataset.read_dataset`) against ``nominal``
+    (default: the model's parameters), the fits on ``workers``, each step reported to
+    ``progress``."""
+    nominal = nominal if nominal is not None else ModelParams()
     prepared = prepare(dataset)
     for note in prepared.corrections:
         progress(f"corrected: {note}")
@@ -273,12 +259,11 @@ def diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams |
         if aligned.shift_rows:
             prepared = prepare(dataset, aligned.shift_rows)
             prepared.corrections.append(f"time base: {aligned.words}")
-        with Cluster(workers, scheduler) as cluster:
-            return _diagnose(prepared, out_dir, nominal, cluster, progress, aligned)
+        return _diagnose(prepared, nominal, workers, progress, aligned)
 
 
-def _diagnose(prepared: Prepared, out_dir: Path, nominal: ModelParams, cluster: Cluster,
-              progress: Progress, aligned: Alignment) -> dict:
+def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
+              progress: Callable[[str], None], aligned: Alignment) -> Diagnosis:
     already = nominal.enabled_effects()
     dt = prepared.dt
     progress(f"{len(prepared.records)} experiments, {prepared.seconds('train'):.1f} s train, "
@@ -300,9 +285,9 @@ def _diagnose(prepared: Prepared, out_dir: Path, nominal: ModelParams, cluster: 
     progress("how visible each candidate would be at its typical size")
     seen = {c.name: visibility(prepared, nominal, nom_all, c) for c in candidates}
 
-    with Fitter(prepared, swapped(prepared), cluster, progress) as fitter:
+    with Fitter(prepared, swapped(prepared), workers, progress) as fitter:
         progress(f"recalibrating the nominal parameters on the training data "
-                 f"({len(CALIBRATION.knobs)} knobs; fits on {cluster})")
+                 f"({len(CALIBRATION.knobs)} knobs; fits on {workers})")
         (cal,) = fitter.run([Job(nominal, (CAL,), CALIBRATION.start(), CALIBRATION_BUDGET)])
         (cal_row,) = rank([cal], nom_hold, nom_windows, dt)
         progress(f"recalibrated: held-out gap {nom_hold.gap:.2f} % -> {cal.holdout.gap:.2f} % "
@@ -391,12 +376,10 @@ def _diagnose(prepared: Prepared, out_dir: Path, nominal: ModelParams, cluster: 
         augmented = nominal
         result["verdict"].update(_no_fit(result["verdict"], aug_hold.gap, still.gap),
                                  subsystem=localization["placement"]["subsystem"])
-    progress(f"writing {out_dir}")
-    _write_outputs(out_dir, result, augmented, prepared, preds, remainders)
     progress(f"verdict: {result['verdict']['effect']} "
              f"(confidence {result['verdict']['confidence']:.2f}); "
              f"{result['verdict']['reason']}")
-    return result
+    return Diagnosis(result, augmented, prepared, preds, remainders)
 
 
 def cannot_judge(prepared: Prepared) -> dict[str, str]:
@@ -559,16 +542,3 @@ def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
                                  for r in prepared.records]},
         "nominal_effects": nominal.enabled_effects(),
     }
-
-
-def _write_outputs(out_dir: Path, result: dict, augmented: ModelParams, prepared: Prepared,
-                   preds: dict, remainders: dict) -> None:
-    from jetpipe_ros import fileio
-    from jetpipe_ros.diagnosis.report import render
-
-    header = ("# jetpipe diagnose: the nominal model plus the effect the diagnosis "
-              f"identified ({result['verdict']['effect']}).\n")
-    texts = {"diagnosis.json": fileio.to_json(result) + "\n",  # strict: NaN/inf as null
-             "augmented.yaml": header + augmented.to_ros_yaml(only_changed=True),
-             "report.html": render(result, prepared, preds, remainders)}
-    fileio.write_files({out_dir / name: texts[name] for name in OUTPUTS})  # all or none

@@ -1,21 +1,52 @@
 """Fits run side by side: each job fits some knob groups on a base model; the jobs of one call
-run on the workers of a Dask cluster (:mod:`cluster`), each reported as it finishes, or one
-after the other in this process when there is no cluster. Both ways run :func:`run_job`.
+run on whatever :class:`Workers` the caller gives (a Dask cluster: :mod:`jetpipe_ros.workflows.
+cluster`), each reported as it finishes, or one after the other in this process
+(:data:`IN_PROCESS`). Both ways run :func:`run_job`. The diagnosis does not start or choose the
+workers: whoever runs it does.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
+from typing import Any, Protocol
 
 import numpy as np
-from distributed import as_completed
 
 from jetpipe_ros.diagnosis.calibration import group
-from jetpipe_ros.diagnosis.cluster import Cluster
 from jetpipe_ros.diagnosis.data import Prepared
 from jetpipe_ros.diagnosis.fit import BUDGET, Fit, fit
 from jetpipe_ros.model import ModelParams
+
+
+class Workers(Protocol):
+    """Where fitting jobs run. ``parallel``: on other processes (else :class:`Fitter` runs
+    them here, one after the other)."""
+
+    parallel: bool
+
+    def share(self, data: Sequence[Any]) -> list:
+        """Send ``data`` to every worker once; handles the jobs carry instead of the data."""
+
+    def release(self, handles: list) -> None:
+        """Free what :meth:`share` sent."""
+
+    def completed(self, fn: Callable, items: Sequence[Any], *shared: Any
+                  ) -> Iterator[tuple[int, Any]]:
+        """``fn(item, *shared)`` of every item on the workers: (index, result) as each ends."""
+
+
+class InProcess:
+    """No workers: every job runs in this process."""
+
+    parallel = False
+
+    def __str__(self) -> str:
+        return "this process"
+
+
+#: The jobs run here, one after the other.
+IN_PROCESS = InProcess()
 
 
 @dataclass(frozen=True)
@@ -39,39 +70,36 @@ def run_job(job: Job, prepared: Prepared, other: Prepared) -> Fit:
 
 
 class Fitter:
-    """Runs fitting jobs on ``cluster`` (or in this process without one), reporting progress.
+    """Runs fitting jobs on ``workers`` (or in this process when they are not parallel),
+    reporting progress.
 
-    The data go to every worker once, at the first call that uses the cluster (scattered with
-    ``broadcast=True``; the jobs carry references to them), not with every job; ``other`` is the
-    same data with train and holdout exchanged (for cross-checks). A call with a single job runs
-    it in this process.
+    The data go to every worker once, at the first call that uses them (:meth:`Workers.share`;
+    the jobs carry the handles), not with every job; ``other`` is the same data with train and
+    holdout exchanged (for cross-checks). A call with a single job runs it in this process.
     """
 
-    def __init__(self, prepared: Prepared, other: Prepared, cluster: Cluster,
+    def __init__(self, prepared: Prepared, other: Prepared, workers: Workers,
                  progress: Callable[[str], None]) -> None:
         self.prepared = prepared
         self.other = other
-        self.cluster = cluster
+        self.workers = workers
         self.progress = progress
-        self._data: list | None = None  #: futures of (prepared, other) on the workers
+        self._data: list | None = None  #: handles of (prepared, other) on the workers
 
     def __enter__(self) -> Fitter:
         return self
 
     def __exit__(self, *exc) -> None:
         if self._data is not None:
-            self.cluster.client.cancel(self._data)  # frees the workers' copies
+            self.workers.release(self._data)  # frees the workers' copies
             self._data = None
 
-    def _shared(self):
-        """The client and the futures of the data on every worker (scattered once)."""
-        client = self.cluster.client
+    def _shared(self) -> list:
+        """The handles of the data on every worker (sent once)."""
         if self._data is None:
-            self._data = client.scatter([self.prepared, self.other], broadcast=True,
-                                        hash=False)
-            self.progress(f"  fitting on {self.cluster} (ready {self.cluster.startup_s:.1f} s "
-                          f"after start, data sent to every worker)")
-        return client, self._data
+            self._data = self.workers.share([self.prepared, self.other])
+            self.progress(f"  fitting on {self.workers} (data sent to every worker)")
+        return self._data
 
     def run(self, jobs: Sequence[Job], labels: Sequence[str] | None = None) -> list[Fit]:
         """Run ``jobs``; return their fits in the order of the jobs. ``labels`` name the jobs
@@ -84,16 +112,11 @@ class Fitter:
             self.progress(f"  [{done}/{len(jobs)}] {name}: held-out gap {f.holdout.gap:.2f} % "
                           f"({f.evaluations} runs, {f.seconds:.1f} s)")
 
-        if len(jobs) == 1 or not self.cluster.parallel:
+        if len(jobs) == 1 or not self.workers.parallel:
             for i, job in enumerate(jobs):
                 report(i, i + 1, run_job(job, self.prepared, self.other))
         else:
-            client, data = self._shared()
-            futures = [client.submit(run_job, job, *data, pure=False) for job in jobs]
-            index = {f.key: i for i, f in enumerate(futures)}
-            try:
-                for done, fut in enumerate(as_completed(futures), 1):
-                    report(index[fut.key], done, fut.result())
-            finally:
-                client.cancel(futures)
+            for done, (i, f) in enumerate(self.workers.completed(run_job, jobs,
+                                                                 *self._shared()), 1):
+                report(i, done, f)
         return fits  # type: ignore[return-value]

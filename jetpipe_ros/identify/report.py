@@ -4,13 +4,12 @@ loop, friction planes, replays)."""
 
 from __future__ import annotations
 
-import base64
 import html
-import io
 from typing import Any
 
 import numpy as np
 
+from jetpipe_ros.figures import png_img, pyplot
 from jetpipe_ros.identify.friction import QUANTITIES, paper_planes
 from jetpipe_ros.identify.identify import Identification
 from jetpipe_ros.identify.valve import peak, response
@@ -84,23 +83,9 @@ def summary(ident: Identification) -> str:
     return "\n".join(lines)
 
 
-def png_img(fig: Any, dpi: int = 90) -> str:
-    """A matplotlib figure as an inline ``<img>`` (PNG, base64), the figure closed."""
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
-    return ("<img alt='figure' src='data:image/png;base64,"
-            + base64.b64encode(buf.getvalue()).decode() + "'>")
-
-
 def figures(ident: Identification) -> list[tuple[str, str]]:
     """(title, <img> tag) of each plot the results allow."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     out = []
     if ident.flow is not None:

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from jetpipe_ros.identify.report import png_img
+from jetpipe_ros.figures import png_img, pyplot
 from jetpipe_ros.identify.seal import (FORMS, Prepared, SealResult, measured_presliding,
                                        since_reversal)
 from jetpipe_ros.model.params import ModelParams
@@ -77,10 +77,7 @@ def prediction_csv(res: SealResult, prep: Prepared) -> str:
 def loop_figure(res: SealResult, preps: list[Prepared]) -> Any:
     """Measured and modelled friction against velocity and against the displacement since
     the last reversal, one row per record (pressure), held-out moving samples."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, axes = plt.subplots(len(preps), 2, figsize=(10, 2.6 * len(preps)), squeeze=False)
     for row, prep in zip(axes, preps):

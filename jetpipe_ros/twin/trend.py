@@ -29,6 +29,7 @@ import numpy as np
 from scipy import stats
 
 from jetpipe_ros.diagnosis.verdict import MIN_T
+from jetpipe_ros.figures import pyplot
 from jetpipe_ros.fileio import FileError
 
 #: Fewest dates for a slope to be judged (a line through two points has no scatter).
@@ -170,10 +171,7 @@ def table(series: list[Series]) -> str:
 
 def plot(series: list[Series], t0: datetime) -> bytes:
     """PNG of every series against days since ``t0``, drifts in red with their line."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     cols = 3
     rows = max(math.ceil(len(series) / cols), 1)

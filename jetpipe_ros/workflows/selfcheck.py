@@ -51,8 +51,8 @@ from distributed import as_completed
 
 from jetpipe_ros.campaign import campaign_dataset as on_model
 from jetpipe_ros.dataset import read_dataset
-from jetpipe_ros.diagnosis.cluster import Cluster
-from jetpipe_ros.diagnosis.diagnose import diagnose
+from jetpipe_ros.workflows.cluster import Cluster
+from jetpipe_ros.workflows.diagnose import diagnose
 from jetpipe_ros.fileio import to_json, write_files, write_text
 from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError, simulate
 from jetpipe_ros.model.params import end_stop_volumes
@@ -461,7 +461,7 @@ def run_selfcheck(n: int, seed: int,
                  f"{_duration(elapsed)} elapsed, about {_duration(left)} left)")
 
     where = str(cases_dir) if cases_dir is not None else None
-    with Cluster(workers, scheduler) as cluster:
+    with Cluster(workers, scheduler, plant=True) as cluster:
         client = cluster.client if todo else None
         if client is None:
             for case in todo:
@@ -689,9 +689,9 @@ def render(summary: dict) -> str:
 def shrinkage_figure(summary: dict, path: Path) -> None:
     """The histogram of held-out shrinkage over the cases with a visible gap, correct and
     missed verdicts stacked, the median marked; written to ``path`` as PNG (atomically)."""
-    from jetpipe_ros.diagnosis.report import _plt
+    from jetpipe_ros.figures import pyplot
 
-    plt = _plt()
+    plt = pyplot()
     rows = [r for r in summary["results"]
             if (r["effects"] and r["visible"]) or r["deviated"]]
     fig, ax = plt.subplots(figsize=(7, 3.2))

@@ -23,8 +23,8 @@ from pathlib import Path
 from distributed import as_completed
 
 from jetpipe_ros.dataset import DatasetError
-from jetpipe_ros.diagnosis.cluster import Cluster
-from jetpipe_ros.diagnosis.diagnose import OUTPUTS, diagnose
+from jetpipe_ros.workflows.cluster import Cluster
+from jetpipe_ros.workflows.diagnose import OUTPUTS, diagnose
 from jetpipe_ros.fileio import to_json, write_files
 from jetpipe_ros.model import ModelParams, ParameterError
 
@@ -200,9 +200,9 @@ def figure(fleet: dict) -> str:
     from matplotlib.colors import TwoSlopeNorm
     from matplotlib.patches import Patch
 
-    from jetpipe_ros.diagnosis.report import _figure_png, _plt
+    from jetpipe_ros.figures import png_img, pyplot
 
-    plt = _plt()
+    plt = pyplot()
     rows = fleet["actuators"]
     ok = [r for r in rows if r["status"] == "ok"]
     knobs = list(ok[0]["calibration"]["knobs"]) if ok else []
@@ -253,7 +253,7 @@ def figure(fleet: dict) -> str:
     kx.set_title(f"calibration knobs (labelled: off by more than {100 * KNOB_OFF:.0f} %)",
                  fontsize=9)
     fig.tight_layout()
-    return _figure_png(fig)
+    return png_img(fig)
 
 
 def render(fleet: dict) -> str:

@@ -9,42 +9,22 @@ subsystems, the paper's metrics, what the experiments cannot show, how the data 
 
 from __future__ import annotations
 
-import base64
 import html
-import io
 
 import numpy as np
 import yaml
 
 from jetpipe_ros.diagnosis.data import Prepared
 from jetpipe_ros.diagnosis.separation import words as stand_in_words
+from jetpipe_ros.figures import png_img, pyplot
 
 COLORS = {"data": "#444444", "nominal": "#d62728", "augmented": "#1f77b4"}
-
-
-def _figure_png(fig) -> str:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    import matplotlib.pyplot as plt
-
-    plt.close(fig)
-    return ("<img alt='figure' src='data:image/png;base64,"
-            + base64.b64encode(buf.getvalue()).decode() + "'>")
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def ranking_figure(result: dict) -> str:
     """Held-out gap of each candidate on the recalibrated model (bars, best first) against the
     nominal and the recalibrated model's."""
-    plt = _plt()
+    plt = pyplot()
     rows = result["ranking"]
     names = [r["candidate"] for r in rows]
     gaps = [r["holdout_gap"] for r in rows]
@@ -61,14 +41,14 @@ def ranking_figure(result: dict) -> str:
     ax.set_xlabel("held-out gap, excess NRMSE [%] (labels: shrinkage of what recalibration "
                   "leaves)")
     ax.legend(loc="lower right")
-    return _figure_png(fig)
+    return png_img(fig)
 
 
 def placement_figure(placement: dict) -> str:
     """Where the gap starts (:mod:`placement`): the share of the held-out gap each one-signal
     experiment removes, against the share that places a cause, and the gap each subsystem's
     replay with measured inputs leaves."""
-    plt = _plt()
+    plt = pyplot()
     exps = placement["experiments"]
     labels = [f"{e['signal']} sensor: lag, gain, offset" if e["subsystem"] == "sensors" else
               "valve: null offset of the command" for e in exps]
@@ -89,7 +69,7 @@ def placement_figure(placement: dict) -> str:
     bx.set_ylabel("held-out gap of the replay [%]")
     bx.set_title(f"answer: {placement['subsystem']}", fontsize=10)
     fig.tight_layout()
-    return _figure_png(fig)
+    return png_img(fig)
 
 
 def calibration_figure(result: dict) -> str:
@@ -97,7 +77,7 @@ def calibration_figure(result: dict) -> str:
     recalibration's alone, with the search range."""
     from jetpipe_ros.diagnosis.calibration import CALIBRATION
 
-    plt = _plt()
+    plt = pyplot()
     cal = result["calibration"]
     knobs = [k.name for k in CALIBRATION.knobs]
     y = np.arange(len(knobs))[::-1]
@@ -116,12 +96,12 @@ def calibration_figure(result: dict) -> str:
     ax.set_yticks(y, knobs, fontsize=8)
     ax.set_xlabel("factor against nominal [%] (grey band: search range)")
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    return _figure_png(fig)
+    return png_img(fig)
 
 
 def overlay_figure(prepared: Prepared, preds: dict, result: dict) -> str:
     """Data, nominal and augmented model on the held-out experiment with the largest gap."""
-    plt = _plt()
+    plt = pyplot()
     best, worst = None, -1.0
     for i, rec in enumerate(prepared.records):
         if not rec.holdout.any():
@@ -154,12 +134,12 @@ def overlay_figure(prepared: Prepared, preds: dict, result: dict) -> str:
     axes[-1].plot(rec.t, rec.u, color="#2ca02c", lw=0.8)
     axes[-1].set_ylabel("command [V]")
     axes[-1].set_xlabel("time [s]")
-    return _figure_png(fig)
+    return png_img(fig)
 
 
 def regime_figure(result: dict) -> str:
     """Held-out gap per operating regime, nominal against augmented."""
-    plt = _plt()
+    plt = pyplot()
     reg = result["localization"]["regimes"]
     names = [n for n in reg if "nominal" in reg[n]]
     if not names:
@@ -173,12 +153,12 @@ def regime_figure(result: dict) -> str:
                   fontsize=8)
     ax.set_ylabel("held-out gap [%]")
     ax.legend()
-    return _figure_png(fig)
+    return png_img(fig)
 
 
 def frequency_figure(result: dict) -> str:
     """Bode plot, command to chamber 1 pressure: data, nominal and augmented."""
-    plt = _plt()
+    plt = pyplot()
     fr = result["localization"]["frequency"]
     if not fr or not fr.get("freq"):
         return ""
@@ -198,7 +178,7 @@ def frequency_figure(result: dict) -> str:
     a2.set_xlabel("frequency [Hz]")
     a1.legend(fontsize=8)
     a1.set_title("command to chamber 1 pressure (bins where the data are coherent)")
-    return _figure_png(fig)
+    return png_img(fig)
 
 
 def summary(result: dict) -> str:
@@ -359,7 +339,7 @@ def equations_figure(result: dict, remainders: dict) -> str:
     """Each equation's error beyond its calibration-shaped part, blocked over 50 ms, against the
     library term that carries most of it (or over the blocks when none does): the shape of what
     the model misses."""
-    plt = _plt()
+    plt = pyplot()
     eqs = result["localization"]["equations"]["equations"]
     names = [n for n in eqs if n in remainders]
     if not names:
@@ -384,7 +364,7 @@ def equations_figure(result: dict, remainders: dict) -> str:
                      color=COLORS["nominal"] if beyond else "#222222")
         ax.set_ylabel(f"error [{unit}]")
     fig.tight_layout()
-    return _figure_png(fig)
+    return png_img(fig)
 
 
 def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> str:

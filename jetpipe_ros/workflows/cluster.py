@@ -1,4 +1,5 @@
-"""Where the diagnosis's work runs: Dask distributed workers, or this process.
+"""Where the work of a diagnosis, a fleet or a self-check runs: Dask distributed workers, or this
+process (the diagnosis's :class:`~jetpipe_ros.diagnosis.jobs.Workers`).
 
 A :class:`Cluster` gives a :class:`distributed.Client` of
 
@@ -15,7 +16,8 @@ A cluster starts in a background thread as soon as it is entered, so that its st
 first needed. Every worker is warmed once as it joins (:class:`Warm`): BLAS limited to one thread
 (the matrices here are small: more threads only spin and take the cores the other workers need),
 the package imported and the compiled kernels loaded from numba's on-disk cache (``cache=True``)
-by a tiny simulation, so no task pays for them.
+by a tiny simulation, so no task pays for them (the plant's too, for a self-check, which
+records on it: ``plant=True``).
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ import time
 
 import dask
 import numpy as np
-from distributed import Client, LocalCluster, WorkerPlugin
+from distributed import Client, LocalCluster, WorkerPlugin, as_completed
 from threadpoolctl import threadpool_limits
 
 from jetpipe_ros.model import ParameterError
@@ -55,16 +57,22 @@ class ClusterError(ParameterError):
 
 class Warm(WorkerPlugin):
     """Set up each worker once as it joins the cluster: one BLAS thread, the package imported,
-    the model's and the plant's compiled kernels loaded (a 20-sample simulation of each)."""
+    the model's compiled kernels loaded (a 20-sample simulation), and the plant's with
+    ``plant``."""
+
+    def __init__(self, plant: bool = False) -> None:
+        self.plant = plant
 
     def setup(self, worker=None) -> None:
         threadpool_limits(1)
         from jetpipe_ros.model import ModelParams, simulate
-        from jetpipe_ros.plant import PlantSpec
-        from jetpipe_ros.plant import simulate as simulate_plant
 
         simulate(ModelParams(), np.zeros(20))
-        simulate_plant(PlantSpec(), np.zeros(20))
+        if self.plant:
+            from jetpipe_ros.plant import PlantSpec
+            from jetpipe_ros.plant import simulate as simulate_plant
+
+            simulate_plant(PlantSpec(), np.zeros(20))
 
 
 class Cluster:
@@ -74,9 +82,11 @@ class Cluster:
 
     ``workers``: worker processes of a local cluster (capped at the number of cores; 1: no
     cluster, the work runs in this process); ignored when a scheduler address is given.
+    ``plant``: warm the plant's kernels on every worker as well (:class:`Warm`).
     """
 
-    def __init__(self, workers: int = 2, scheduler: str | None = None) -> None:
+    def __init__(self, workers: int = 2, scheduler: str | None = None,
+                 plant: bool = False) -> None:
         if workers < 1:
             raise ParameterError(f"--jobs {workers}: must be at least 1")
         env = dask.config.get("scheduler-address", None)
@@ -87,6 +97,7 @@ class Cluster:
         self._client: Client | None = None
         self._error: BaseException | None = None
         self._thread: threading.Thread | None = None
+        self._plant = plant
 
     def __str__(self) -> str:
         if self.address:
@@ -116,7 +127,7 @@ class Cluster:
                     client = Client(LocalCluster(n_workers=self.workers, threads_per_worker=1,
                                                  processes=True, dashboard_address=None,
                                                  silence_logs=logging.ERROR))
-            client.register_plugin(Warm(), name="jetpipe-warm")
+            client.register_plugin(Warm(self._plant), name="jetpipe-warm")
             self._client = client
         except Exception as exc:  # raised where the client is first needed  # noqa: BLE001
             self._error = exc
@@ -144,3 +155,23 @@ class Cluster:
             client.close()
             if local is not None:
                 local.close()
+
+    def share(self, data: list) -> list:
+        """Send ``data`` to every worker once (scattered with ``broadcast=True``); the futures
+        jobs carry instead of the data."""
+        return self.client.scatter(data, broadcast=True, hash=False)
+
+    def release(self, handles: list) -> None:
+        """Free what :meth:`share` sent."""
+        self.client.cancel(handles)
+
+    def completed(self, fn, items, *shared):
+        """``fn(item, *shared)`` of every item on the workers: (index, result) as each ends;
+        what is still running is cancelled if the caller stops early or a task fails."""
+        futures = [self.client.submit(fn, item, *shared, pure=False) for item in items]
+        index = {f.key: i for i, f in enumerate(futures)}
+        try:
+            for fut in as_completed(futures):
+                yield index[fut.key], fut.result()
+        finally:
+            self.client.cancel(futures)

@@ -8,7 +8,7 @@ from jetpipe_ros.arguments import positive_int
 
 
 def _diagnose(args: argparse.Namespace) -> int:
-    from jetpipe_ros.diagnosis.fleet import dataset_dirs
+    from jetpipe_ros.workflows.fleet import dataset_dirs
     from jetpipe_ros.fileio import output_dir
     from jetpipe_ros.model import ModelParams, load_params
 
@@ -17,7 +17,7 @@ def _diagnose(args: argparse.Namespace) -> int:
     dirs, is_fleet = dataset_dirs(args.dataset)
     if is_fleet:
         return _fleet(args, dirs, params)
-    from jetpipe_ros.diagnosis.diagnose import diagnose
+    from jetpipe_ros.workflows.diagnose import diagnose
 
     result = diagnose(dirs[0], args.out, params, workers=args.jobs, quiet=args.quiet,
                       scheduler=args.scheduler)
@@ -36,7 +36,7 @@ def _diagnose(args: argparse.Namespace) -> int:
 def _fleet(args: argparse.Namespace, dirs, params) -> int:
     import sys
 
-    from jetpipe_ros.diagnosis.fleet import run_fleet
+    from jetpipe_ros.workflows.fleet import run_fleet
 
     progress = (lambda line: None) if args.quiet else (
         lambda line: print(line, file=sys.stderr, flush=True))
@@ -58,7 +58,7 @@ def _fleet(args: argparse.Namespace, dirs, params) -> int:
 def _selfcheck(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from jetpipe_ros.diagnosis.selfcheck import Logged, run_selfcheck
+    from jetpipe_ros.workflows.selfcheck import Logged, run_selfcheck
     from jetpipe_ros.fileio import output_dir
 
     output_dir(args.out, "--out")  # before the work
