@@ -57,12 +57,13 @@ def placement_figure(placement: dict) -> str:
                                  gridspec_kw={"width_ratios": [3, 2]})
     colors = ["#1f77b4" if r >= 100 * placement["places_at"] else "#cccccc" for r in removed]
     ax.barh(labels[::-1], removed[::-1], color=colors[::-1])
-    ax.axvline(100 * placement["places_at"], color="#d62728", ls="--", label="places the cause")
+    ax.axvline(100 * placement["places_at"], color="#d62728", ls="--")
+    ax.text(100 * placement["places_at"], len(exps) - 0.45, " places the cause", color="#d62728",
+            fontsize=8, va="bottom")
     ax.set_xlim(0, 100)
     ax.set_xlabel("held-out gap removed by changing this alone [%]")
-    ax.legend(loc="lower right", fontsize=8)
     replays = placement["replays"]
-    names = ["valve + chambers\n(fed measured motion)", "mechanics\n(fed measured pressures)"]
+    names = ["valve +\nchambers\n(fed measured\nmotion)", "mechanics\n(fed measured\npressures)"]
     gaps = [replays["valve_and_chambers"]["gap"],
             replays["mechanics"]["gap"] if replays["mechanics"] else 0.0]
     bx.bar(names, gaps, color=["#9ecae1", "#fdae6b"])
@@ -70,6 +71,18 @@ def placement_figure(placement: dict) -> str:
     bx.set_title(f"answer: {placement['subsystem']}", fontsize=10)
     fig.tight_layout()
     return png_img(fig)
+
+
+def placement_section(placement: dict) -> str:
+    """The report's section on where an unlisted gap starts, in words and a figure."""
+    words = placement["words"][0].upper() + placement["words"][1:]
+    return (f"<h3>Where it starts (experiments on the records with the final model)</h3>"
+            f"<p>{html.escape(words)}: the gap starts in the "
+            f"<b>{html.escape(placement['subsystem'])}</b>. Each experiment changes one thing the "
+            f"model is told and fits it on the training data; a change of one signal that "
+            f"removes at least {100 * placement['places_at']:.0f} % of the held-out gap places "
+            f"the cause there, else the subsystem whose replay with measured inputs still "
+            f"misses does.</p>" + placement_figure(placement))
 
 
 def calibration_figure(result: dict) -> str:
@@ -429,14 +442,7 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
         "<h3>By equation (what the augmented model's equations leave, all data)</h3>",
         f"<p>{html.escape(equation_words(result))}.</p>",
         equations_figure(result, remainders),
-        *(["<h3>Where it starts (experiments on the records with the final model)</h3>",
-           f"<p>{html.escape(loc['placement']['words'])}: the gap starts in the "
-           f"<b>{html.escape(loc['placement']['subsystem'])}</b>. Each experiment changes one "
-           f"thing the model is told and fits it on the training data; a change of one signal "
-           f"that removes at least {100 * loc['placement']['places_at']:.0f} % of the held-out "
-           f"gap places the cause there, else the subsystem whose replay with measured inputs "
-           f"still misses does.</p>", placement_figure(loc["placement"])]
-          if "placement" in loc else []),
+        placement_section(loc["placement"]) if "placement" in loc else "",
         "<h3>By signal (held out, %)</h3>",
         _table(sig_rows, ["signal", "nominal", "augmented"]),
         "<h3>By subsystem (nominal model, all data, %)</h3>",
