@@ -357,7 +357,7 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
     }
     if settled.unlisted or not fits:
         progress("placing the gap: experiments that hold one subsystem or one signal")
-        localization["placement"] = place(prepared, augmented, remainders)
+        localization["placement"] = place(prepared, augmented)
     verdict = settled.verdict
     separating = None
     if settled.alternative is not None:

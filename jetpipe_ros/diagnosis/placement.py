@@ -22,11 +22,13 @@ changing one thing and asking how much of the held-out gap goes:
   recalibration may have moved one subsystem's knobs to make up for the other's missing physics;
   the replay that still misses by more holds the cause (the other one's gap falls when its inputs
   are right; both gaps are in per cent of the signals' spread beyond noise, so they compare).
-  Between the valve and the chambers the equation errors decide (:mod:`residuals`): of
-  the library terms that carry the two chamber balances' errors, the kind with the larger share
-  of their variance (a valve offset or a flow gain that changes with pressure: ``valve``; a
-  leak or compression term: ``chamber``); where no term of either kind carries a tenth,
-  ``valve+chamber``. This is the weakest of the experiments: a shape, not a replay.
+  Between the valve and the chambers, the valve's static flow map is identified afresh
+  (Eq. 8 times a gain that is a smooth function of command and pressure, fitted to the
+  chambers' replay on the training samples, as the paper identifies Eq. 8 from the pressure
+  rate of a chamber, Sec. 2.3): when it removes at least half of the chambers' held-out replay gap, the valve holds the
+  cause (a static function of command and pressure: a null or gain that moves with pressure);
+  when it does not, the chambers do (what the gas does beyond a flow that depends on them:
+  heat, leaks across the piston, volumes in motion).
 
 A one-signal experiment places the cause when it removes at least half of the held-out gap
 beyond noise: more than all else together, so the signal it changes is where the gap starts. A
@@ -38,6 +40,7 @@ position lag) is a candidate the diagnosis has already tried.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 
 import numpy as np
 from scipy import optimize
@@ -46,9 +49,9 @@ from scipy import signal as sps
 from jetpipe_ros.diagnosis.calibration import CALIBRATION
 from jetpipe_ros.diagnosis.data import Prepared, Record
 from jetpipe_ros.diagnosis.prediction import Prediction, predict
-from jetpipe_ros.diagnosis.residuals import EquationError, sparse_terms
 from jetpipe_ros.diagnosis.score import predict_all, score
 from jetpipe_ros.model import ModelParams
+from jetpipe_ros.model.flow import flow_matrix
 
 #: Lags tried for one sensor [s]: a transducer's conditioning filter of a fraction of a sample
 #: to a few tens of ms (docs/effects.md gives 1-10 ms for the pressure transducers).
@@ -61,6 +64,11 @@ PLACES = 0.5
 OWN_KNOBS = {"chambers": ("flow_gain_charge", "flow_gain_discharge", "valve_gain",
                           "valve_frequency", "dead_volume_1", "dead_volume_2"),
              "mechanics": ("friction_entry", "friction_exit", "viscous_entry", "viscous_exit")}
+#: The valve's flow map identified afresh: Eq. 8 times a gain that is a smooth function of
+#: command and pressure, these powers (i, j) of u and p (the constant is the calibration's).
+MAP_GAINS = ((1, 0), (0, 1), (1, 1), (2, 0), (0, 2))
+#: Largest coefficient of each power in that gain (u and p scaled to within +-1 and +-0.5).
+MAP_RANGE = 1.0
 
 
 def _replays(params: ModelParams, prepared: Prepared, mode: str) -> list[Prediction | None]:
@@ -73,6 +81,23 @@ def _replays(params: ModelParams, prepared: Prepared, mode: str) -> list[Predict
             for r in prepared.records]
 
 
+def _fit_replay(prepared: Prepared, mode: str, signals: tuple[str, ...],
+                moved: Callable[[np.ndarray], ModelParams], n: int,
+                bounds: tuple[np.ndarray, np.ndarray]) -> ModelParams:
+    """``moved(z)`` with ``z`` (n values within ``bounds``, 0 = unchanged) fitted by least
+    squares to the ``mode`` replay's training samples of ``signals``."""
+
+    def residuals(z: np.ndarray) -> np.ndarray:
+        out = [(p.signal(s) - r.signal(s))[p.free & r.train] / prepared.scale[s]
+               for r, p in zip(prepared.records, _replays(moved(z), prepared, mode))
+               if p is not None for s in signals if s in r.signals()]
+        return np.concatenate(out) if out else np.zeros(1)
+
+    fit = optimize.least_squares(residuals, np.zeros(n), diff_step=1e-3, max_nfev=10 * (n + 1),
+                                 bounds=bounds)
+    return moved(fit.x)
+
+
 def _refit(prepared: Prepared, params: ModelParams, mode: str,
            signals: tuple[str, ...]) -> ModelParams:
     """``params`` with the subsystem's own calibration knobs (:data:`OWN_KNOBS`) refitted to
@@ -82,25 +107,45 @@ def _refit(prepared: Prepared, params: ModelParams, mode: str,
     def moved(z: np.ndarray) -> ModelParams:
         return CALIBRATION.apply(params, {k.name: float(np.exp(zi)) for k, zi in zip(knobs, z)})
 
-    def residuals(z: np.ndarray) -> np.ndarray:
-        out = [(p.signal(s) - r.signal(s))[p.free & r.train] / prepared.scale[s]
-               for r, p in zip(prepared.records, _replays(moved(z), prepared, mode))
-               if p is not None for s in signals if s in r.signals()]
-        return np.concatenate(out) if out else np.zeros(1)
+    return _fit_replay(prepared, mode, signals, moved, len(knobs),
+                       (np.log([k.low for k in knobs]), np.log([k.high for k in knobs])))
 
-    fit = optimize.least_squares(residuals, np.zeros(len(knobs)), diff_step=1e-3, max_nfev=60,
-                                 bounds=([np.log(k.low) for k in knobs],
-                                         [np.log(k.high) for k in knobs]))
-    return moved(fit.x)
+
+def _flow_map(prepared: Prepared, params: ModelParams) -> ModelParams:
+    """``params`` with the valve's flow map identified afresh in a smooth gain: Eq. 8 times
+    ``1 + sum a_k b_k(u, p)`` over :data:`MAP_GAINS` (u / 3 V and (p - 5.5 bar) / 9 bar to the
+    powers given), each ``a_k`` within +-``MAP_RANGE``, fitted to the chambers' replay on the
+    training samples jointly with the chambers' own calibration knobs (the whole model's
+    recalibration may have moved them to make up for the map). The product is carried into
+    Eq. 8's own 21 coefficients by least squares over the map's domain (-3.4..3.4 V, 1..10 bar),
+    so the model runs it as it runs Eq. 8."""
+    base = np.array(params["flow.coefficients"], dtype=float)
+    u, p = (g.ravel() for g in np.meshgrid(np.linspace(-3.4, 3.4, 35), np.linspace(1, 10, 37)))
+    terms = flow_matrix(u, p)
+    flow = terms @ base
+    shapes = np.column_stack([flow * (u / 3.0) ** i * ((p - 5.5) / 9.0) ** j
+                              for i, j in MAP_GAINS])
+    per_gain, *_ = np.linalg.lstsq(terms, shapes, rcond=None)  # (21, gains)
+    knobs = [k for k in CALIBRATION.knobs if k.name in OWN_KNOBS["chambers"]]
+    n = len(knobs)
+
+    def moved(z: np.ndarray) -> ModelParams:
+        remapped = params.with_values({"flow.coefficients": (base + per_gain @ z[n:]).tolist()})
+        return CALIBRATION.apply(remapped, {k.name: float(np.exp(zi))
+                                            for k, zi in zip(knobs, z[:n])})
+
+    gains = len(MAP_GAINS)
+    return _fit_replay(prepared, "chambers", ("p1", "p2"), moved, n + gains,
+                       (np.r_[np.log([k.low for k in knobs]), np.full(gains, -MAP_RANGE)],
+                        np.r_[np.log([k.high for k in knobs]), np.full(gains, MAP_RANGE)]))
 
 
 def subsystem_gaps(prepared: Prepared, params: ModelParams, role: str | None = None,
-                   refit: bool = False) -> dict:
+                   own: dict[str, ModelParams] | None = None) -> dict:
     """Gap [%] of each subsystem replayed with its inputs held on the measurements (``role``
-    samples; all for None), with its own calibration knobs refitted on the training samples
-    when ``refit``; and the steady pressure offset and noise the sensors show."""
-    own = {mode: _refit(prepared, params, mode, signals) if refit else params
-           for mode, signals in (("chambers", ("p1", "p2")), ("mechanics", ("y",)))}
+    samples; all for None), each on ``params`` or on its own parameters in ``own`` (by replay
+    mode: chambers, mechanics); and the steady pressure offset and noise the sensors show."""
+    own = {"chambers": params, "mechanics": params, **(own or {})}
     chambers = score(prepared, _replays(own["chambers"], prepared, "chambers"), role,
                      ("p1", "p2"))
     mechanics = score(prepared, _replays(own["mechanics"], prepared, "mechanics"), role, ("y",))
@@ -186,19 +231,18 @@ def _null(prepared: Prepared, params: ModelParams) -> dict:
             "holdout_gap": score(prepared, preds(float(fit.x)), "holdout").gap}
 
 
-def place(prepared: Prepared, params: ModelParams,
-          remainders: dict[str, EquationError]) -> dict:
+def place(prepared: Prepared, params: ModelParams) -> dict:
     """Where the gap of ``params`` on the held-out data starts (module docstring): the
-    subsystem, in words why, and every experiment's held-out gap and share removed.
-    ``remainders``: what each equation of ``params`` leaves beyond calibration, by equation
-    (:func:`residuals.locate`)."""
+    subsystem, in words why, and every experiment's held-out gap and share removed."""
     base = score(prepared, predict_all(params, prepared, None), "holdout")
     experiments = [_sensor(prepared, params, s) for s in prepared.sensors]
     experiments = [e for e in experiments if e] + [_null(prepared, params)]
     for e in experiments:
         e["removed"] = 1.0 - e["holdout_gap"] / base.gap if base.gap > 0 else 0.0
     best = max(experiments, key=lambda e: e["removed"])
-    replays = subsystem_gaps(prepared, params, "holdout", refit=True)
+    own = {mode: _refit(prepared, params, mode, signals)
+           for mode, signals in (("chambers", ("p1", "p2")), ("mechanics", ("y",)))}
+    replays = subsystem_gaps(prepared, params, "holdout", own)
     out = {"holdout_gap": base.gap, "experiments": experiments, "replays": replays,
            "places_at": PLACES}
     if best["removed"] >= PLACES:
@@ -219,24 +263,11 @@ def place(prepared: Prepared, params: ModelParams,
         words += (f"; replayed with their inputs measured, the mechanics miss by "
                   f"{mechanics:.2f} %, the valve and chambers by {chambers:.2f} %")
     if subsystem == "valve+chamber":
-        shares = _term_shares(remainders)
-        out["chamber_balance_shares"] = shares
-        kind = max(shares, key=shares.get)
-        if shares[kind] > 0.0 and shares[kind] > min(shares.values()):
-            subsystem = kind
-        words += (f"; the chamber balances' error is shaped by the valve's terms "
-                  f"({100 * shares['valve']:.0f} % of its variance) and the chambers' "
-                  f"({100 * shares['chamber']:.0f} %)")
+        remapped = score(prepared, _replays(_flow_map(prepared, own["chambers"]), prepared,
+                                            "chambers"), "holdout", ("p1", "p2")).gap
+        share = 1.0 - remapped / chambers if chambers > 0 else 0.0
+        out["flow_map_removed"] = share
+        subsystem = "valve" if share >= PLACES else "chamber"
+        words += (f"; the valve's flow map identified afresh (Eq. 8 times a smooth gain) removes "
+                  f"{100 * share:.0f} % of the chambers' replay gap")
     return {**out, "subsystem": subsystem, "words": words}
-
-
-def _term_shares(remainders: dict[str, EquationError]) -> dict[str, float]:
-    """Share of the chamber balances' error variance carried by the valve's and by the
-    chambers' library terms (:func:`residuals.sparse_terms`), averaged over the balances."""
-    balances = [e for name, e in remainders.items() if name.startswith("chamber")]
-    shares = {"valve": 0.0, "chamber": 0.0}
-    for err in balances:
-        for term in sparse_terms(err):
-            if term["subsystem"] in shares:
-                shares[term["subsystem"]] += term["share"] / len(balances)
-    return shares
