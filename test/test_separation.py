@@ -130,7 +130,7 @@ def _stand_in(effect_gap, shift):
     windows = 1.0 + 0.1 * rng.random(20)
     recal = _fit((NAME,), {NAME: {**knobs, "friction_entry": 0.6}}, 0.48, windows)
     bristles = {"bristle_stiffness": 3e4, "bristle_damping": 20.0}
-    effect = _fit(("friction_dynamics",), {"friction_dynamics": bristles}, effect_gap,
+    effect = _fit(("friction_dynamics:lugre",), {"friction_dynamics:lugre": bristles}, effect_gap,
                   windows + shift + 0.05 * rng.standard_normal(windows.size))
     fitter = _Fitter(effect)
     stderr = {k: 0.01 for k in knobs}
@@ -150,7 +150,8 @@ def test_an_effect_that_explains_what_the_recalibration_leaves_is_the_answer():
     recal, fitter, rows = _stand_in(0.23, -0.5)
     # Only the move beyond three standard errors is suspect; the effect is fitted on the
     # recalibration with that knob back at nominal, once per form of the effect.
-    assert {job.groups for job in fitter.jobs} == {("friction_dynamics",)}
+    assert [job.groups for job in fitter.jobs] == [("friction_dynamics:lugre",),
+                                                   ("friction_dynamics:maxwell_slip",)]
     assert all(job.base["friction.entry.breakaway"] == ModelParams()["friction.entry.breakaway"]
                for job in fitter.jobs)
     (swap,) = rows
@@ -161,7 +162,7 @@ def test_an_effect_that_explains_what_the_recalibration_leaves_is_the_answer():
         0.48)
     assert row["shrinkage"] == pytest.approx(1 - 0.23 / 0.48)
     assert np.isfinite(row["t_recalibration"]) and row["t_recalibration"] < -3.0
-    assert swap.fit.groups == (NAME, "friction_dynamics")
+    assert swap.fit.groups == (NAME, "friction_dynamics:lugre")
     assert swap.fit.values[NAME]["friction_entry"] == 1.0  # back at nominal
     assert row["separating_experiment"] is None
     settled = adopt(swap)
