@@ -20,8 +20,8 @@ a small reversal inside a loop is as stiff as a large one (Masing's rule), and a
 comes back to the friction of the reversal point before its own passes through that point: the
 inner loop closes there, the two points are wiped out and the branch it had left goes on (no
 ratcheting). Reaching the level wipes out all of them. From rest (F = 0) the first branch
-reaches the level after about half of L.
-At rest the friction holds whatever it is, without creep. Frictional memory follows:
+reaches the level where a full swing would be half done, about u_50 below. At rest the friction
+holds whatever it is, without creep. Frictional memory follows:
 decelerating toward a reversal the friction is at its level; after it, at the same speed, it is
 still building up.
 
@@ -105,10 +105,10 @@ def seal_substep(y: float, v: float, points: np.ndarray, n: int, d: float, f_a: 
     inertia (w - v) = f_a - F(y) - K h w - (F_v + damping) w, the friction's stiffness K
     [N/m] implicit (``inertia`` = M / h [kg/s], ``damping`` [N s/m] the caller's implicit
     linear terms, F_v [N s/m] the viscous coefficient ``f_v_exit`` or ``f_v_entry`` of the
-    direction; levels ``g_exit``, ``g_entry`` and full swing ``swing`` [N]: module docstring). A w against the branch's direction is a reversal: (y, F(y)) is pushed on the
+    direction; levels ``g_exit``, ``g_entry`` and full swing ``swing`` [N]: module
+    docstring). A w against the branch's direction is a reversal: (y, F(y)) is pushed on the
     stack ``points`` (``n`` of them; the oldest dropped when it is full; from sliding it is the
-    only point already) and the branch turns.
-    Returns (w [m/s], the number of points, the direction, the friction [N] at y + h w with
+    only point already) and the branch turns. Returns (w [m/s], the number of points, the direction, the friction [N] at y + h w with
     its viscous term); ``points`` changes in place."""
     f, k, n = seal_force(y, points, n, d, g_exit, g_entry, swing, length, knee)
     f_v = f_v_exit if d > 0.0 else f_v_entry
