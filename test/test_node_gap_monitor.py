@@ -149,11 +149,16 @@ def test_effect_switched_on_is_flagged_captured_and_named(rig, ros_context):
                           if stamps[0] <= s <= stamps[-1])
         assert stamps == sorted(stamps)
         # The test's own listener may lose messages on a loaded machine (it is a Python
-        # subscriber like any other): what the capture holds beyond it is what it missed,
-        # a small part; every sample the listener got is in the capture, but what the transport
-        # lost on the way to the monitor (a sample short of a message is not written).
+        # subscriber like any other; on a machine running other work it lost a third): what the
+        # capture holds beyond it is at most what it visibly missed of the regular 1 kHz stream
+        # (the holes in its own stamps); every sample the listener got is in the capture, but
+        # what the transport lost on the way to the monitor (a sample short of a message is not
+        # written).
         missed_here = set(stamps) - set(recorded)
-        assert len(missed_here) <= 0.05 * len(stamps), len(missed_here)
+        step = float(np.median(np.diff(recorded)))
+        holes = sum(round(d / step) - 1 for d in np.diff(recorded)) + round(
+            (recorded[0] - stamps[0]) / step) + round((stamps[-1] - recorded[-1]) / step)
+        assert len(missed_here) <= holes, (len(missed_here), holes)
         counts = _values(listener.latest("gap"))
         lost = sum(int(counts[k]) for k in ("samples without command", "samples without a "
                                             "measurement", "samples filled (lost)"))

@@ -18,7 +18,7 @@ from jetpipe_ros.model import kernel as k
 from jetpipe_ros.model import simulate as model_simulate
 from jetpipe_ros.model.chamber import chamber_volumes
 from jetpipe_ros.model.flow import chamber_inflow, flow_polynomial
-from jetpipe_ros.model.friction import friction_parameters
+from jetpipe_ros.model.friction import friction_parameters, stribeck_force
 from jetpipe_ros.model.params import FLOW_COEFFICIENTS, FRICTION_PLANES
 from jetpipe_ros.model.valve import valve_tf
 from jetpipe_ros.plant import (EFFECT_PARAMS, REAL_EFFECTS, Plant, PlantError, PlantSpec,
@@ -340,6 +340,86 @@ def test_elastoplastic_presliding_is_force_over_stiffness_without_drift():
     assert slid[k.OUT_Y] > 1e-3  # above breakaway it slides
 
 
+def _seal_loops(values: dict, p: float = 4e5) -> np.ndarray:
+    """A plant with a measured seal on the friction rig (both chambers regulated at ``p``
+    [Pa]), pushed back and forth by a triangle load of +-45 N (two 16 s cycles, beyond the
+    breakaway both ways; slow, so the piston is still slower than 1 mm/s where the seal
+    reaches 90 % of its swing): the outputs (n, N_OUT)."""
+    t = np.arange(0.0, 32.0, 1e-3)
+    load = 45.0 * signal.sawtooth(2 * np.pi * t / 16.0 + np.pi / 2, 0.5)
+    return _regulated(PlantSpec().with_effect("measured_seal", **values), p, p).run(
+        np.zeros(t.size), load)
+
+
+def _swings(out: np.ndarray, fraction: float, p: float = 4e5) -> list[float]:
+    """Displacement [m] after each reversal of ``out``'s motion (followed by sliding) at which
+    the seal's friction (the friction less F_v v) has covered ``fraction`` of its swing from
+    where it was at the reversal to the new direction's sliding level at that speed (the pinned
+    Stribeck curve at pressures ``p`` [Pa])."""
+    y, v, f = out[:, k.OUT_Y], out[:, k.OUT_V], out[:, k.OUT_FRICTION]
+    moving = np.flatnonzero(np.abs(v) > 1e-9)
+    turns = [i for a, i in zip(moving[:-1], moving[1:]) if v[a] * v[i] < 0]
+    found = []
+    for start, end in zip(turns, [*turns[1:], y.size]):
+        if np.abs(v[start:end]).max() < 2e-3:
+            continue  # no sliding after this reversal
+        d = np.sign(v[start])
+        f_s, v_s, f_v, f_c = friction_parameters(PLANES, d, p, p)
+        seal = f[start:end] - f_v * v[start:end]
+        level = stribeck_force(v[start:end], f_s, v_s, f_c)
+        f0 = f[start - 1] - friction_parameters(PLANES, -d, p, p)[2] * v[start - 1]
+        reached = np.flatnonzero(d * (seal - f0) >= fraction * d * (level - f0))
+        found.append(float(d * (y[start + reached[0]] - y[start - 1])))
+    return found
+
+
+def test_measured_seal_builds_up_over_its_presliding_displacement():
+    """Seals drawn as the records show them (u_90 0.22-0.83 mm, u_50 / u_90 0.12-0.29), pushed
+    back and forth on the rig: after every reversal the friction covers 90 % of its swing
+    within 3 % of the drawn u_90 (inside the records' range) and half of it within 5 % of
+    q u_90; it flips sign within 0.3 u_90 (the levels are 18 and 22 N), and slides at the
+    pinned Stribeck level plus F_v v of its direction."""
+    rng = np.random.default_rng(7)
+    for _ in range(3):
+        values = REAL_EFFECTS["measured_seal"].sample(rng)
+        u90, q = values["presliding_displacement"], values["half_fraction"]
+        assert 2.2e-4 <= u90 <= 8.3e-4 and 0.12 <= q <= 0.29
+        out = _seal_loops(values)
+        ninety, half = _swings(out, 0.9), _swings(out, 0.5)
+        assert len(ninety) >= 3
+        assert np.allclose(ninety, u90, rtol=0.03), (ninety, u90)
+        assert np.allclose(half, q * u90, rtol=0.05), (half, q * u90)
+        assert max(_swings(out, 0.46)) < 0.3 * u90
+    sliding = np.flatnonzero(np.abs(out[:, k.OUT_V]) > 2e-3)
+    assert sliding.size > 500
+    for i in sliding[::50]:
+        v = out[i, k.OUT_V]
+        f_s, v_s, f_v, f_c = friction_parameters(PLANES, np.sign(v), 4e5, 4e5)
+        assert out[i, k.OUT_FRICTION] == pytest.approx(
+            stribeck_force(v, f_s, v_s, f_c) + f_v * v, rel=0.01)
+
+
+def test_measured_seal_holds_without_creep_and_its_small_loops_close():
+    """Below the sliding level the seal is rate-independent: a load held for 1 s leaves the
+    piston where it is (no creep). Loads cycled 10 +- 8 N trace a loop over 10 um wide that
+    ends where the cycle before ended within 0.1 um, also after a 10 +- 4 N cycle inside it:
+    inner loops close and are wiped out (Masing), the piston does not ratchet."""
+    plant = _regulated(PlantSpec().with_effect("measured_seal", presliding_displacement=5e-4,
+                                               half_fraction=0.16), 4e5, 4e5)
+    held = plant.run(np.zeros(500), 10.0)[-1]
+    after = plant.run(np.zeros(1000), 10.0)[-1]
+    assert held[k.OUT_Y] < -1e-5
+    assert abs(after[k.OUT_Y] - held[k.OUT_Y]) < 1e-10
+    t = np.arange(0.0, 1.0, 1e-3)
+    ends, widths = [], []
+    for amplitude in (8.0, 8.0, 4.0, 8.0):
+        y = plant.run(np.zeros(t.size), 10.0 + amplitude * np.sin(2 * np.pi * t))[:, k.OUT_Y]
+        ends.append(y[-1])
+        widths.append(np.ptp(y))
+    assert widths[0] > 1e-5 and widths[2] < widths[0]
+    assert abs(ends[1] - ends[0]) < 1e-7 and abs(ends[3] - ends[1]) < 1e-7
+
+
 def test_cushion_balances_the_force_before_the_stop():
     """Regulated: S (p1 - p2) = 1087 N drives the piston into a 4 mm, 5e5 N/m cushion; at
     rest (it creeps onto the breakaway boundary) the friction holds what the spring does not,
@@ -450,6 +530,10 @@ def test_spec_rejects_what_it_cannot_simulate():
         PlantSpec().with_effect("null_offset", voltage=0.1)
     with pytest.raises(PlantError, match="out of range"):
         PlantSpec().with_effect("iso6358_leak", critical_ratio=0.9)
+    with pytest.raises(PlantError, match="both friction laws"):
+        PlantSpec().with_effect("measured_seal").with_effect("elastoplastic_friction")
+    with pytest.raises(PlantError, match="measured_seal.half_fraction|half_fraction"):
+        PlantSpec().with_effect("measured_seal", half_fraction=0.05)
     with pytest.raises(PlantError, match="model effects valve_lag are on"):
         PlantSpec(P.with_effect("valve_lag", corner_frequency=20.0))
 

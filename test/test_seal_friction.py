@@ -95,6 +95,31 @@ def test_real_record_presliding_within_its_measured_range():
     assert judged["ms"]["r2_within"] > 0.5 > judged["static"]["r2_within"]
 
 
+def test_the_diagnosis_candidates_typical_seal_lies_among_the_shipped_records():
+    """The friction_dynamics:maxwell_slip candidate's typical size (the medians of twelve
+    records) lies within what the three shipped records fit to on their first halves (delta
+    0.32-0.68 mm, spread 0.013-0.10), inside the candidate's search range, away from where
+    it vanishes; and the self-check plant's measured_seal draws u_90 over the shipped records'
+    medians over their reversals (0.28-0.74 mm)."""
+    from jetpipe_ros.diagnosis.candidates import CANDIDATES, SEAL_ELEMENTS, SEAL_SIZE
+    from jetpipe_ros.identify.seal import ELEMENTS
+    from jetpipe_ros.plant import REAL_EFFECTS
+
+    preps = [prepare(r) for r in read_records(SEALS)]
+    fits = [fit_form("maxwell_slip", [p], p.record.file) for p in preps]
+    for name in ("presliding_displacement", "presliding_spread"):
+        fitted = [f.values[name] for f in fits]
+        assert min(fitted) < SEAL_SIZE[name] < max(fitted), (name, fitted)
+    candidate = CANDIDATES["friction_dynamics:maxwell_slip"]
+    assert candidate.typical == SEAL_SIZE and SEAL_ELEMENTS == ELEMENTS
+    z = candidate.to_unit(candidate.typical)
+    assert np.all((0.1 < z) & (z < 0.9)) and not candidate.vanishes(candidate.typical)
+    medians = [float(np.median(measured_presliding(p))) for p in preps]
+    drawn = [REAL_EFFECTS["measured_seal"].sample(np.random.default_rng(i))[
+        "presliding_displacement"] for i in range(200)]
+    assert min(drawn) < min(medians) and max(medians) < max(drawn)
+
+
 def test_friction_command_writes_loadable_parameters(tmp_path, capsys):
     rig = tmp_path / "rig"
     rig.mkdir()

@@ -115,7 +115,7 @@ def test_a_short_holdout_is_backed_by_the_cross_check(rng):
     nom = windows(FLOOR, rng, jitter=3e-5)
     better = nom.copy()
     better[:3] -= 4e-5
-    fits = [fit("friction_dynamics", 0.02, better)]
+    fits = [fit("friction_dynamics:lugre", 0.02, better)]
     ranking = rank(fits, score(0.1), nom, 1e-3)
     (r,) = ranking
     assert 0 < r.t < 3 and r.needs_cross_check and not r.explains
@@ -124,7 +124,7 @@ def test_a_short_holdout_is_backed_by_the_cross_check(rng):
     assert not r.explains and not r.needs_cross_check
     r.t_cross = 4.0  # confirmed out of sample in the other fold
     assert r.explains
-    assert decide(ranking, score(0.1), nom, None).winner.fit.name == "friction_dynamics"
+    assert decide(ranking, score(0.1), nom, None).winner.fit.name == "friction_dynamics:lugre"
 
 
 def _settle(rng, cal_gap, on_cal_gap, alone_gap, effect="valve_lag:first_order"):

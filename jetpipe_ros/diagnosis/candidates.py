@@ -2,17 +2,18 @@
 diagnosis fits, their search ranges, and a typical size used to judge whether the experiments
 could show the effect at all.
 
-Ranges are wider than the typical sizes of docs/effects.md so a real effect is not clipped, and each
-contains the value at which the effect vanishes (zero delay, hysteresis, leak, bias; n = 1; the
-nominal supply and mass; a corner, wall heat conductance or bristle stiffness high enough to be
-invisible), so a fit to data without the effect can land on "no effect". The forms the physics
-admits are candidates of their own, judged on held-out data like the effects: the valve lag of
-first order (a corner) or second order (a natural frequency and a damping ratio); the
-thermal effect as a polytropic index or as gas temperatures exchanging heat with the walls;
-leaks as laminar conductances or compressible (choked) orifices, each across the piston and to
-atmosphere. Where forms blend continuously a knob spans them: the hysteresis is eight play
-operators whose thresholds spread from one sharp loop (spread 0) to a rounded
-Prandtl-Ishlinskii loop (spread 1).
+Ranges are wider than the typical sizes of docs/effects.md so a real effect is not clipped, and
+each contains the value at which the effect vanishes (zero delay, hysteresis, leak, bias; n = 1;
+the nominal supply and mass; a corner, wall heat conductance or bristle stiffness high enough, or a
+pre-sliding displacement short enough, to be invisible), so a fit to data without the effect can
+land on "no effect". The forms the physics admits are candidates of their own, judged on held-out
+data like the effects: the valve lag of first order (a corner) or second order (a natural frequency
+and a damping ratio); the thermal effect as a polytropic index or as gas temperatures exchanging
+heat with the walls; leaks as laminar conductances or compressible (choked) orifices, each across
+the piston and to atmosphere; dynamic friction as LuGre bristles or as Maxwell-slip elements (what
+real seals show, docs/friction.md), the elements' spread a knob of its extent. Where forms blend
+continuously a knob spans them: the hysteresis is eight play operators whose thresholds spread from
+one sharp loop (spread 0) to a rounded Prandtl-Ishlinskii loop (spread 1).
 """
 
 from __future__ import annotations
@@ -123,6 +124,18 @@ class Candidate(KnobGroup):
         return params.with_effect(self.effect, **self.fixed, **values)
 
 
+#: Maxwell-slip elements of the ``friction_dynamics:maxwell_slip`` candidate (as fitted to the
+#: friction-rig records: :data:`jetpipe_ros.identify.seal.ELEMENTS`).
+SEAL_ELEMENTS = 3
+#: Typical size of the Maxwell-slip friction of real seals: the medians of the twelve public
+#: friction-rig records (three seals, 1-7 bar gauge, 25 mm bore) that chose the form, each fitted
+#: alone on its first half (docs/friction.md, "The diagnosis' candidate"). Neither scales with the
+#: bore: the pre-sliding displacement delta [m] is a length (range over the records 0.18-1.25 mm),
+#: the spread [-] a ratio of lengths (0.013-0.38); the level the elements share is the model's
+#: own planes, which the calibration scales.
+SEAL_SIZE = {"presliding_displacement": 5.6e-4, "presliding_spread": 0.052}
+
+
 def effect_of(name: str) -> str:
     """The effect (docs/effects.md) of a candidate name (``effect`` or ``effect:form``)."""
     return name.split(":", 1)[0]
@@ -150,9 +163,14 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     Candidate("leakage:orifice", (Knob("cross_area", 0.0, 4e-7, 0.0),
                                   Knob("atmosphere_area", 0.0, 4e-7, 0.0, tries=(5e-8,))),
               {"cross_area": 1e-7, "atmosphere_area": 0.0}, {"form": "orifice"}),
-    Candidate("friction_dynamics", (Knob("bristle_stiffness", 1e3, 1e7, 1e7, log=True),
-                                    Knob("bristle_damping", 0.0, 3e3, 0.0)),
-              {"bristle_stiffness": 1e5, "bristle_damping": 0.0}),
+    Candidate("friction_dynamics:lugre", (Knob("bristle_stiffness", 1e3, 1e7, 1e7, log=True),
+                                          Knob("bristle_damping", 0.0, 3e3, 0.0)),
+              {"bristle_stiffness": 1e5, "bristle_damping": 0.0}, {"form": "lugre"}),
+    Candidate("friction_dynamics:maxwell_slip",
+              (Knob("presliding_displacement", 2e-6, 5e-3, 2e-6, log=True),
+               Knob("presliding_spread", 0.01, 1.0, SEAL_SIZE["presliding_spread"], log=True,
+                    extent=True)),
+              dict(SEAL_SIZE), {"form": "maxwell_slip", "elements": SEAL_ELEMENTS}),
     Candidate("moving_mass", (Knob("mass", 0.1, 10.0, 1.0, log=True),), {"mass": 3.0}),
     Candidate("sensor_dynamics", (Knob("time_constant", 0.0, 0.02, 0.0),
                                   Knob("bias", -2e4, 2e4, 0.0),

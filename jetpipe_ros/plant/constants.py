@@ -9,19 +9,23 @@ import numpy as np
 
 from jetpipe_ros.model.flow import GAMMA_AIR, P_SUPPLY_NOMINAL
 from jetpipe_ros.plant.linear import second_order_lag
+from jetpipe_ros.plant.seal import knee_of, length_of
 from jetpipe_ros.plant.spec import PlantSpec
 from jetpipe_ros.plant.valve import delayed_chain
 
-# State layout: scalars, the extra lag, the sensors, the plays, then the valve chain.
+# State layout: scalars, the extra lag, the sensors, the plays, the measured seal's reversal
+# points, then the valve chain.
 (Y, V, M1, M2, E1, E2, P1, P2, STUCK, Z, SUPPLY, DRAWN, STEP, HEAD, UCMD, UEQ,
- FRICTION) = range(17)
-LAG = 17  #: extra valve lag: output [V], its rate [V/s]
-SENSOR1 = 19  #: chamber 1 transducer: reading [Pa], its rate [Pa/s]
-SENSOR2 = 21  #: chamber 2 transducer
-POSITION = 23  #: position transducer: its second stage's reading [m], its first stage's [m]
-PLAY = 25  #: the N_PLAY play operators' outputs [V]
+ FRICTION, SEAL_D, SEAL_N) = range(19)  # SEAL_D: the seal's branch direction, SEAL_N: points
+LAG = 19  #: extra valve lag: output [V], its rate [V/s]
+SENSOR1 = 21  #: chamber 1 transducer: reading [Pa], its rate [Pa/s]
+SENSOR2 = 23  #: chamber 2 transducer
+POSITION = 25  #: position transducer: its second stage's reading [m], its first stage's [m]
+PLAY = 27  #: the N_PLAY play operators' outputs [V]
 N_PLAY = 3
-VALVE = PLAY + N_PLAY  #: first of the valve chain's states
+SEAL = PLAY + N_PLAY  #: the measured seal's N_SEAL reversal points: x_r [m], F_r [N] each
+N_SEAL = 8
+VALVE = SEAL + 2 * N_SEAL  #: first of the valve chain's states
 
 
 class PlantConstants(NamedTuple):
@@ -71,6 +75,9 @@ class PlantConstants(NamedTuple):
     sigma1: float  #: [N s/m]
     v_damp: float  #: [m/s]
     z_fraction: float  #: beta
+    seal: bool  #: measured seal's friction on
+    seal_length: float  #: its build-up length L of a full swing [m]
+    seal_knee: float  #: its knee c [-]
     cushion_length: float  #: [m]; 0 = no cushion
     cushion_k: float  #: [N/m]
     cushion_c: float  #: [N s/m]
@@ -113,6 +120,8 @@ def build_constants(spec: PlantSpec) -> PlantConstants:
     friction = e.get("elastoplastic_friction", {"bristle_stiffness": 1.0, "bristle_damping": 0.0,
                                                 "damping_velocity": 1.0,
                                                 "breakaway_fraction": 0.5})
+    seal = e.get("measured_seal")
+    knee = knee_of(seal["half_fraction"]) if seal else 1.0
     cushion = e.get("end_stop_cushion", {"length": 0.0, "stiffness": 0.0, "damping": 0.0})
     spring = e.get("load_spring", {"stiffness": 0.0, "free_position": 0.0})
     position = e.get("position_filter")
@@ -150,6 +159,8 @@ def build_constants(spec: PlantSpec) -> PlantConstants:
         bristles="elastoplastic_friction" in e,
         sigma0=friction["bristle_stiffness"], sigma1=friction["bristle_damping"],
         v_damp=friction["damping_velocity"], z_fraction=friction["breakaway_fraction"],
+        seal=seal is not None, seal_knee=knee,
+        seal_length=length_of(seal["presliding_displacement"], knee) if seal else 1.0,
         cushion_length=cushion["length"], cushion_k=cushion["stiffness"],
         cushion_c=cushion["damping"],
         spring_k=spring["stiffness"], spring_y0=spring["free_position"],

@@ -54,6 +54,14 @@ def _bristles(rng: np.random.Generator) -> dict[str, float]:
             "breakaway_fraction": float(rng.uniform(0.5, 0.9))}
 
 
+def _seal(rng: np.random.Generator) -> dict[str, float]:
+    """A real seal as twelve friction-rig records show it (docs/selfcheck.md): u_90 0.22-0.83 mm
+    (log; the range of the records' medians over their reversals), u_50 / u_90 0.12-0.29 (ten of
+    the twelve records)."""
+    return {"presliding_displacement": _log_uniform(rng, 2.2e-4, 8.3e-4),
+            "half_fraction": float(rng.uniform(0.12, 0.29))}
+
+
 #: Real effect name -> (subsystem, listed effect or "unlisted", sampler).
 REAL_EFFECTS: dict[str, RealEffect] = {
     "wall_heat_exchange": RealEffect("chamber", "thermal", lambda r: {
@@ -65,6 +73,7 @@ REAL_EFFECTS: dict[str, RealEffect] = {
         "critical_ratio": float(r.uniform(0.3, 0.45))}),
     "weighted_play_hysteresis": RealEffect("valve", "valve_hysteresis", _plays),
     "elastoplastic_friction": RealEffect("mechanics", "friction_dynamics", _bristles),
+    "measured_seal": RealEffect("mechanics", "friction_dynamics", _seal),
     "sensor_second_order": RealEffect("sensors", "sensor_dynamics", lambda r: {
         "natural_frequency": _log_uniform(r, 25.0, 100.0),
         "damping_ratio": float(r.uniform(0.6, 1.0)),

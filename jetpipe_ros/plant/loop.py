@@ -9,8 +9,8 @@ Per sub-step of length h = dt / substeps (8 by default, the model integrates in 
    (:mod:`chambers`), by Heun's rule (second order: the flows at the start and at the Euler
    prediction, averaged; u_eq the valve's output averaged over the sub-step);
 3. the piston's velocity and position advance implicitly under the pressures so reached (the
-   gas spring linearised implicit as well), with stick-slip or bristles, cushions and the
-   inelastic end stops (:mod:`mechanics`);
+   gas spring linearised implicit as well), with stick-slip, bristles or a measured seal
+   (:mod:`seal`), cushions and the inelastic end stops (:mod:`mechanics`);
 4. the chambers' gas follows the volume change (isothermal, or isentropic then exact wall heat
    exchange) and the pressures are read from mass (and energy) and volume;
 5. the transducers advance on the pressures held over the sub-step and the position's mean over
@@ -32,10 +32,12 @@ from jetpipe_ros.model.flow import GAMMA_AIR, P_ATM
 from jetpipe_ros.model.valve import U_EQ_MAX, U_EQ_MIN
 from jetpipe_ros.plant.chambers import exchange_heat, isentropic_energy, leak_mass
 from jetpipe_ros.plant.constants import (DRAWN, E1, E2, FRICTION, HEAD, LAG, M1, M2, N_PLAY, P1,
-                                         P2, PLAY, SENSOR1, SENSOR2, STEP, STUCK, SUPPLY, UCMD,
-                                         UEQ, VALVE, V, Y, Z, PlantConstants)
+                                         N_SEAL, P2, PLAY, SEAL, SEAL_D, SEAL_N, SENSOR1,
+                                         SENSOR2, STEP, STUCK, SUPPLY, UCMD, UEQ, VALVE, V, Y,
+                                         Z, PlantConstants)
 from jetpipe_ros.plant.linear import second_order_step
-from jetpipe_ros.plant.mechanics import bristles, stick_slip
+from jetpipe_ros.plant.mechanics import bristles, directional_levels, stick_slip
+from jetpipe_ros.plant.seal import seal_force, seal_substep
 from jetpipe_ros.plant.sensors import filter_position, measure
 from jetpipe_ros.plant.valve import valve_inflow, weighted_plays
 
@@ -131,23 +133,36 @@ def _pressures(c: PlantConstants, x: np.ndarray, vol1: float, vol2: float) -> No
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _friction(c: PlantConstants, x: np.ndarray, f: float, damping: float,
-              h: float) -> tuple[float, bool, float, float]:
-    """(velocity, stuck, bristle deflection, friction) after a sub-step under force ``f`` [N]
-    and extra implicit ``damping`` [N s/m]; the state is not changed."""
+def _friction(c: PlantConstants, x: np.ndarray, f: float, damping: float, h: float,
+              points: np.ndarray) -> tuple[float, bool, float, float, int, float]:
+    """(velocity, stuck, bristle deflection, friction, the measured seal's number of reversal
+    points and branch direction) after a sub-step under force ``f`` [N] and extra implicit
+    ``damping`` [N s/m]; the state is not changed (the seal's reversal points change in
+    ``points``, a copy of the state's)."""
+    if c.seal:
+        g_exit, g_entry, f_v_exit, f_v_entry = directional_levels(c.planes, x[V], x[P1], x[P2])
+        rest_exit, rest_entry, _, _ = directional_levels(c.planes, 0.0, x[P1], x[P2])
+        w, n, d, friction = seal_substep(
+            x[Y], x[V], points, int(x[SEAL_N]), x[SEAL_D], f, c.mass / h, damping, h, g_exit,
+            g_entry, rest_exit + rest_entry, f_v_exit, f_v_entry, c.seal_length, c.seal_knee)
+        return w, False, x[Z], friction, n, d
     if c.bristles:
         w, z, friction = bristles(x[V], x[Z], f, c.planes, x[P1], x[P2], c.mass / h, damping, h,
                                   c.sigma0, c.sigma1, c.v_damp, c.z_fraction)
-        return w, False, z, friction
+        return w, False, z, friction, int(x[SEAL_N]), x[SEAL_D]
     w, stuck, friction = stick_slip(x[V], x[STUCK] != 0.0, f, c.planes, x[P1], x[P2],
                                     c.mass / h, damping)
-    return w, stuck, x[Z], friction
+    return w, stuck, x[Z], friction, int(x[SEAL_N]), x[SEAL_D]
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _mechanics(c: PlantConstants, x: np.ndarray, f_load: float, h: float) -> None:
-    """Advance piston velocity and position one sub-step (mechanics docstring)."""
+def _mechanics(c: PlantConstants, x: np.ndarray, f_load: float, h: float,
+               points: np.ndarray) -> None:
+    """Advance piston velocity and position one sub-step (mechanics docstring); ``points`` is
+    scratch for the measured seal's reversal points (2 N_SEAL)."""
     y = x[Y]
+    if c.seal:
+        points[:] = x[SEAL:SEAL + 2 * N_SEAL]
     f_a = c.area * (x[P1] - x[P2]) - f_load - c.spring_k * (y - c.spring_y0)
     # The gas spring implicit too: S (p1 - p2) falls by k_gas dy as the piston moves dy = h w,
     # k_gas = n S^2 (p1 / V1 + p2 / V2), n = 1 isothermal, gamma isentropic.
@@ -161,12 +176,16 @@ def _mechanics(c: PlantConstants, x: np.ndarray, f_load: float, h: float) -> Non
     side = math.copysign(1.0, y)
     if c.cushion_length > 0.0 and depth > 0.0:
         # Spring-damper at the end of the sub-step, k (depth + h side w) + c side w, implicit.
-        w, stuck, z, friction = _friction(c, x, f_a - side * c.cushion_k * depth,
-                                          gas + c.cushion_k * h + c.cushion_c, h)
+        w, stuck, z, friction, n, d = _friction(
+            c, x, f_a - side * c.cushion_k * depth, gas + c.cushion_k * h + c.cushion_c, h,
+            points)
         if c.cushion_k * (depth + h * side * w) + c.cushion_c * side * w < 0.0:
-            w, stuck, z, friction = _friction(c, x, f_a, gas, h)  # it would pull: let go
+            # It would pull: let go.
+            if c.seal:
+                points[:] = x[SEAL:SEAL + 2 * N_SEAL]
+            w, stuck, z, friction, n, d = _friction(c, x, f_a, gas, h, points)
     else:
-        w, stuck, z, friction = _friction(c, x, f_a, gas, h)
+        w, stuck, z, friction, n, d = _friction(c, x, f_a, gas, h, points)
     y_new = y + h * w
     if abs(y_new) > c.y_max:
         y_new = math.copysign(c.y_max, y_new)
@@ -177,10 +196,18 @@ def _mechanics(c: PlantConstants, x: np.ndarray, f_load: float, h: float) -> Non
             # moved (elastically: at rest nothing flows); the stop takes the rest of the force.
             z = x[Z] + (y_new - y)
             friction = c.sigma0 * z
+        if c.seal:
+            # The seal holds what it holds where the stop left it; the stop takes the rest.
+            g_exit, g_entry, _, _ = directional_levels(c.planes, 0.0, x[P1], x[P2])
+            friction, _, n = seal_force(y_new, points, n, d, g_exit, g_entry, g_exit + g_entry,
+                                        c.seal_length, c.seal_knee)
     x[Y] = y_new
     x[V] = w
     x[STUCK] = 1.0 if stuck else 0.0
     x[Z] = z
+    if c.seal:
+        x[SEAL_N], x[SEAL_D] = n, d
+        x[SEAL:SEAL + 2 * N_SEAL] = points
     x[FRICTION] = friction
 
 
@@ -194,6 +221,7 @@ def advance(c: PlantConstants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
     nv = c.valve_c.shape[0]
     xv = x[VALVE:VALVE + nv].copy()
     tmp = np.empty(nv)
+    points = np.empty(2 * N_SEAL)
     head = int(x[HEAD])
     supply_decay = math.exp(-h / c.supply_tau)
     for k in range(u.shape[0]):
@@ -224,7 +252,7 @@ def advance(c: PlantConstants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
                 x[V] = 0.0
                 x[FRICTION] = 0.0
             else:
-                _mechanics(c, x, f_load[k], h)
+                _mechanics(c, x, f_load[k], h, points)
             new1, new2 = chamber_volumes(x[Y], c.area, c.v01, c.v02)
             if c.regulated:
                 t1 = _temperature(c, x, M1, E1)

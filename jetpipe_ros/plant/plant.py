@@ -54,6 +54,8 @@ class Plant:
         x = np.zeros(s.VALVE + c.valve_c.shape[0])
         x[s.Y] = min(max(p["mechanics.initial_position"], -c.y_max), c.y_max)
         x[s.STUCK] = 1.0
+        # The seal relaxed: one reversal point, here, without friction.
+        x[s.SEAL_N], x[s.SEAL_D], x[s.SEAL] = 1.0, 1.0, x[s.Y]
         x[s.SUPPLY] = c.supply_set
         self.state = x
         self._set_pressures(p["chamber.initial_pressure_1"], p["chamber.initial_pressure_2"],
@@ -124,6 +126,7 @@ class Plant:
                              constants.y_max)
             state[s.V] = 0.0
             state[s.STUCK] = 1.0
+            state[s.SEAL_N], state[s.SEAL], state[s.SEAL + 1] = 1.0, state[s.Y], 0.0
             self._set_pressures(p["chamber.initial_pressure_1"], p["chamber.initial_pressure_2"],
                                 *temperatures)
 

@@ -51,6 +51,14 @@ EFFECT_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
         _p("breakaway_fraction", 0.7, "Elastic range z_ba as a fraction beta of |F_C| / "
            "sigma_0", "", 0.01, 0.99),
     ),
+    "measured_seal": (
+        _p("presliding_displacement", 5.7e-4, "Displacement after a reversal at which the "
+           "friction has covered 90 % of its swing from one direction's sliding level to the "
+           "other's, u_90", "m", 1e-5, 0.01),
+        _p("half_fraction", 0.16, "Displacement to half the swing over u_90, q = u_50 / u_90 "
+           "(small: the sign flips soon after a reversal, the level comes slowly)", "", 0.115,
+           0.5),
+    ),
     "sensor_second_order": (
         _p("natural_frequency", 50.0, "Pressure transducer natural frequency f_n", "Hz",
            1.0, 1e5),
@@ -140,6 +148,9 @@ class PlantSpec:
         object.__setattr__(self, "effects", effects)
         if self.mass <= 0.0:
             raise PlantError(f"extra_mass: the moving mass {self.mass:g} kg is not positive")
+        if "elastoplastic_friction" in effects and "measured_seal" in effects:
+            raise PlantError("elastoplastic_friction and measured_seal are both friction laws "
+                             "of the piston: switch on one")
         hysteresis = effects.get("weighted_play_hysteresis")
         if hysteresis and sum(hysteresis[f"weight_{i}"] for i in (1, 2, 3)) <= 0.0:
             raise PlantError("weighted_play_hysteresis: the weights sum to 0")
