@@ -15,6 +15,10 @@ changing one thing and asking how much of the held-out gap goes:
 - **the valve's null** (``valve``): the model driven by the recorded command plus an offset u_0
   [V] (within +-0.5 V, fitted on the training samples), a jet pipe whose null is off centre (the
   valve's gain is a calibration knob already);
+- each of these judged with the calibration knobs refitted beside it (a few Gauss-Newton steps
+  from the recalibration's values): the whole model's recalibration may have made up for part
+  of what the experiment changes (a lagging position read as more viscous friction); and
+  against the same refit without it, so the knobs' own share is no experiment's;
 - **the valve and chambers against the mechanics**: each replayed with its inputs held on the
   measurements (the chambers fed the measured motion and command, the piston the measured
   pressures: :func:`subsystem_gaps`), its own calibration knobs refitted on the training
@@ -25,8 +29,9 @@ changing one thing and asking how much of the held-out gap goes:
   Between the valve and the chambers, the valve's static flow map is identified afresh
   (Eq. 8 times a gain that is a smooth function of command and pressure, fitted to the
   chambers' replay on the training samples, as the paper identifies Eq. 8 from the pressure
-  rate of a chamber, Sec. 2.3): when it removes at least half of the chambers' held-out replay gap, the valve holds the
-  cause (a static function of command and pressure: a null or gain that moves with pressure);
+  rate of a chamber, Sec. 2.3): when it removes at least half of the chambers' held-out replay
+  gap, the valve holds the cause (a static function of command and pressure: a null or gain
+  that moves with pressure);
   when it does not, the chambers do (what the gas does beyond a flow that depends on them:
   heat, leaks across the piston, volumes in motion).
 
@@ -40,14 +45,14 @@ position lag) is a candidate the diagnosis has already tried.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from scipy import optimize
 from scipy import signal as sps
 
 from jetpipe_ros.diagnosis.calibration import CALIBRATION
-from jetpipe_ros.diagnosis.data import Prepared, Record
+from jetpipe_ros.diagnosis.data import SIGNALS, Prepared, Record
 from jetpipe_ros.diagnosis.prediction import Prediction, predict
 from jetpipe_ros.diagnosis.score import predict_all, score
 from jetpipe_ros.model import ModelParams
@@ -60,6 +65,9 @@ SENSOR_LAGS = (5e-4, 1e-3, 2e-3, 3e-3, 4e-3, 6e-3, 8e-3, 1.2e-2, 1.6e-2, 2e-2)
 NULL_OFFSET = 0.5
 #: A one-signal experiment that removes this share of the held-out gap places the cause.
 PLACES = 0.5
+#: Gauss-Newton steps of the calibration knobs refitted beside a one-signal experiment (they
+#: start where the whole model's recalibration left them, near their optimum).
+RECALIBRATION_STEPS = 3
 #: Calibration knobs of each subsystem replayed apart (:mod:`calibration`), by replay mode.
 OWN_KNOBS = {"chambers": ("flow_gain_charge", "flow_gain_discharge", "valve_gain",
                           "valve_frequency", "dead_volume_1", "dead_volume_2"),
@@ -81,21 +89,52 @@ def _replays(params: ModelParams, prepared: Prepared, mode: str) -> list[Predict
             for r in prepared.records]
 
 
-def _fit_replay(prepared: Prepared, mode: str, signals: tuple[str, ...],
-                moved: Callable[[np.ndarray], ModelParams], n: int,
-                bounds: tuple[np.ndarray, np.ndarray]) -> ModelParams:
-    """``moved(z)`` with ``z`` (n values within ``bounds``, 0 = unchanged) fitted by least
-    squares to the ``mode`` replay's training samples of ``signals``."""
+def _fit(prepared: Prepared, signals: tuple[str, ...],
+         predictions: Callable[[np.ndarray], Sequence[Prediction | None]], n: int,
+         bounds: tuple[np.ndarray, np.ndarray], evaluations: int | None = None) -> np.ndarray:
+    """``z`` (n values within ``bounds``, starting at 0) whose ``predictions(z)`` fit the
+    training samples of ``signals`` best (least squares; at most ``evaluations`` predictions,
+    default ten per unknown and one)."""
 
     def residuals(z: np.ndarray) -> np.ndarray:
         out = [(p.signal(s) - r.signal(s))[p.free & r.train] / prepared.scale[s]
-               for r, p in zip(prepared.records, _replays(moved(z), prepared, mode))
+               for r, p in zip(prepared.records, predictions(z))
                if p is not None for s in signals if s in r.signals()]
         return np.concatenate(out) if out else np.zeros(1)
 
-    fit = optimize.least_squares(residuals, np.zeros(n), diff_step=1e-3, max_nfev=10 * (n + 1),
-                                 bounds=bounds)
-    return moved(fit.x)
+    return optimize.least_squares(residuals, np.zeros(n), diff_step=1e-3,
+                                  max_nfev=evaluations or 10 * (n + 1), bounds=bounds).x
+
+
+def _fit_replay(prepared: Prepared, mode: str, signals: tuple[str, ...],
+                moved: Callable[[np.ndarray], ModelParams], n: int,
+                bounds: tuple[np.ndarray, np.ndarray]) -> ModelParams:
+    """``moved(z)`` with ``z`` fitted to the ``mode`` replay's training samples of
+    ``signals`` (:func:`_fit`)."""
+    return moved(_fit(prepared, signals, lambda z: _replays(moved(z), prepared, mode), n,
+                      bounds))
+
+
+def _recalibrated(prepared: Prepared, params: ModelParams,
+                  predictions: Callable[[ModelParams, np.ndarray], Sequence[Prediction]],
+                  extra: tuple[tuple[float, float], ...] = ()) -> float:
+    """Held-out gap [%] of ``predictions(params', e)`` (an experiment's changed predictions)
+    once every calibration knob is refitted with it on the training samples (factors on
+    ``params``, a few Gauss-Newton steps from where the whole model's recalibration left
+    them), and the experiment's ``extra`` unknowns (their bounds) with them: the
+    recalibration may have made up for part of what the experiment changes."""
+    knobs = CALIBRATION.knobs
+    n = len(knobs)
+
+    def run(z: np.ndarray) -> Sequence[Prediction]:
+        q = CALIBRATION.apply(params, {k.name: float(np.exp(zi)) for k, zi in zip(knobs, z)})
+        return predictions(q, z[n:])
+
+    low = np.r_[np.log([k.low for k in knobs]), [b[0] for b in extra]]
+    high = np.r_[np.log([k.high for k in knobs]), [b[1] for b in extra]]
+    z = _fit(prepared, SIGNALS, run, n + len(extra), (low, high),
+             evaluations=RECALIBRATION_STEPS * (n + len(extra) + 1))
+    return score(prepared, run(z), "holdout").gap
 
 
 def _refit(prepared: Prepared, params: ModelParams, mode: str,
@@ -187,63 +226,78 @@ def _restarted(rec: Record, name: str, tau: float, dt: float) -> Record:
     return dataclasses.replace(rec, smooth=smooth, v=v)
 
 
-def _sensor(prepared: Prepared, params: ModelParams, name: str) -> dict:
-    """The best lag, gain and offset of sensor ``name`` and the held-out gap it leaves."""
+def _sensor_predictions(prepared: Prepared, params: ModelParams, name: str,
+                        tau: float) -> tuple[list[Prediction], float, float]:
+    """Predictions of every record with sensor ``name`` read through a lag ``tau`` [s] and the
+    gain and offset that fit its training samples best (least squares), and those two."""
     dt = prepared.dt
-    best = None
-    for tau in SENSOR_LAGS:
-        records = [_restarted(r, name, tau, dt) if r.measured(name) else r
-                   for r in prepared.records]
-        moved = dataclasses.replace(prepared, records=records)
-        preds = predict_all(params, moved, None)
-        lagged = [_lag(p.signal(name), tau, dt) for p in preds]
-        rows = [(lg[m], r.signal(name)[m]) for r, p, lg in zip(prepared.records, preds, lagged)
-                if r.measured(name) and name in r.signals()
-                for m in [p.free & r.train] if m.any()]
-        if not rows:
-            return {}
-        x = np.concatenate([a for a, _ in rows])
-        target = np.concatenate([b for _, b in rows])
-        (gain, offset), *_ = np.linalg.lstsq(np.column_stack([x, np.ones_like(x)]), target,
-                                             rcond=None)
-        changed = [dataclasses.replace(p, **{name: gain * lg + offset})
-                   for p, lg in zip(preds, lagged)]
-        train = score(prepared, changed, "train")
-        if best is None or train.total < best[0]:
-            best = (train.total, tau, float(gain), float(offset), changed)
-    _, tau, gain, offset, changed = best
+    records = [_restarted(r, name, tau, dt) if r.measured(name) else r for r in prepared.records]
+    preds = predict_all(params, dataclasses.replace(prepared, records=records), None)
+    lagged = [_lag(p.signal(name), tau, dt) for p in preds]
+    rows = [(lg[m], r.signal(name)[m]) for r, p, lg in zip(prepared.records, preds, lagged)
+            if r.measured(name) and name in r.signals() for m in [p.free & r.train] if m.any()]
+    if not rows:
+        return preds, 1.0, 0.0
+    x = np.concatenate([a for a, _ in rows])
+    target = np.concatenate([b for _, b in rows])
+    (gain, offset), *_ = np.linalg.lstsq(np.column_stack([x, np.ones_like(x)]), target,
+                                         rcond=None)
+    changed = [dataclasses.replace(p, **{name: gain * lg + offset})
+               for p, lg in zip(preds, lagged)]
+    return changed, float(gain), float(offset)
+
+
+def _sensor(prepared: Prepared, params: ModelParams, name: str) -> dict:
+    """The lag (on :data:`SENSOR_LAGS`), gain and offset of sensor ``name`` that fit the
+    training samples best, and the held-out gap left with the calibration knobs refitted."""
+    if not any(r.measured(name) and name in r.signals() for r in prepared.records):
+        return {}
+    fits = [(score(prepared, preds, "train").total, tau, gain, offset)
+            for tau in SENSOR_LAGS
+            for preds, gain, offset in [_sensor_predictions(prepared, params, name, tau)]]
+    _, tau, gain, offset = min(fits)
+    gap = _recalibrated(prepared, params,
+                        lambda q, _: _sensor_predictions(prepared, q, name, tau)[0])
     return {"subsystem": "sensors", "signal": name, "time_constant_s": tau, "gain": gain,
-            "offset": offset, "holdout_gap": score(prepared, changed, "holdout").gap}
+            "offset": offset, "holdout_gap": gap}
 
 
 def _null(prepared: Prepared, params: ModelParams) -> dict:
-    """The valve null offset [V] that fits the training samples, and the held-out gap left."""
+    """The valve null offset [V] that fits the training samples, and the held-out gap left
+    with it refitted jointly with the calibration knobs."""
 
-    def preds(u0: float) -> list[Prediction]:
+    def preds(q: ModelParams, u0: float) -> list[Prediction]:
         moved = dataclasses.replace(prepared, records=[
             dataclasses.replace(r, u=r.u + u0) for r in prepared.records])
-        return predict_all(params, moved, None)
+        return predict_all(q, moved, None)
 
-    fit = optimize.minimize_scalar(lambda u0: score(prepared, preds(u0), "train").total,
+    fit = optimize.minimize_scalar(lambda u0: score(prepared, preds(params, u0), "train").total,
                                    bounds=(-NULL_OFFSET, NULL_OFFSET), method="bounded",
                                    options={"xatol": 2e-3})
-    return {"subsystem": "valve", "signal": "u", "null_offset_v": float(fit.x),
-            "holdout_gap": score(prepared, preds(float(fit.x)), "holdout").gap}
+    u0 = float(fit.x)
+    gap = _recalibrated(prepared, params, lambda q, e: preds(q, u0 + e[0]),
+                        ((-NULL_OFFSET - u0, NULL_OFFSET - u0),))
+    return {"subsystem": "valve", "signal": "u", "null_offset_v": u0, "holdout_gap": gap}
 
 
 def place(prepared: Prepared, params: ModelParams) -> dict:
     """Where the gap of ``params`` on the held-out data starts (module docstring): the
     subsystem, in words why, and every experiment's held-out gap and share removed."""
     base = score(prepared, predict_all(params, prepared, None), "holdout")
+    # What the same refit of the knobs leaves without any experiment: the bar each one is
+    # judged against, so that no experiment gets credit for what the knobs alone remove.
+    knobs_alone = _recalibrated(prepared, params, lambda q, _: predict_all(q, prepared, None))
+    reference = min(base.gap, knobs_alone)
     experiments = [_sensor(prepared, params, s) for s in prepared.sensors]
     experiments = [e for e in experiments if e] + [_null(prepared, params)]
     for e in experiments:
-        e["removed"] = 1.0 - e["holdout_gap"] / base.gap if base.gap > 0 else 0.0
+        e["removed"] = 1.0 - e["holdout_gap"] / reference if reference > 0 else 0.0
     best = max(experiments, key=lambda e: e["removed"])
     own = {mode: _refit(prepared, params, mode, signals)
            for mode, signals in (("chambers", ("p1", "p2")), ("mechanics", ("y",)))}
     replays = subsystem_gaps(prepared, params, "holdout", own)
-    out = {"holdout_gap": base.gap, "experiments": experiments, "replays": replays,
+    out = {"holdout_gap": base.gap, "knobs_refitted_gap": knobs_alone,
+           "experiments": experiments, "replays": replays,
            "places_at": PLACES}
     if best["removed"] >= PLACES:
         what = (f"a lag of {1e3 * best['time_constant_s']:g} ms, gain {best['gain']:.3f} and "
