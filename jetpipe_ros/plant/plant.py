@@ -54,7 +54,7 @@ class Plant:
         x = np.zeros(s.VALVE + c.valve_c.shape[0])
         x[s.Y] = min(max(p["mechanics.initial_position"], -c.y_max), c.y_max)
         x[s.STUCK] = 1.0
-        x[s.SUPPLY] = c.supply_set
+        x[s.SUPPLY] = x[s.REGULATOR] = c.supply_set
         self.state = x
         self._set_pressures(p["chamber.initial_pressure_1"], p["chamber.initial_pressure_2"],
                             c.t_wall, c.t_wall)
