@@ -5,10 +5,11 @@ could show the effect at all.
 Ranges are wider than the typical sizes of docs/effects.md so a real effect is not clipped, and each
 contains the value at which the effect vanishes (zero delay, hysteresis, leak, bias; n = 1; the
 nominal supply and mass; a corner, wall heat conductance, bristle stiffness or supply line
-conductance high enough to be invisible), so a fit to data without the effect can land on "no effect". The forms the physics
-admits are candidates of their own, judged on held-out data like the effects: the valve lag of
-first order (a corner) or second order (a natural frequency and a damping ratio); the
-thermal effect as a polytropic index or as gas temperatures exchanging heat with the walls;
+conductance high enough to be invisible), so a fit to data without the effect can land on "no
+effect". The forms the physics admits are candidates of their own, judged on held-out data like
+the effects: the valve lag of first order (a corner) or second order (a natural frequency and a
+damping ratio); the thermal effect as a polytropic index or as gas temperatures exchanging heat
+with the walls;
 leaks as laminar conductances, compressible (choked) orifices, or a flow that grows as the
 pressure difference to a fitted power, each across the piston and to atmosphere; the supply
 constant, or a line (volume and conductance) fed from a set pressure and drained by the flow the

@@ -10,9 +10,10 @@ of two sources:
   from the candidates, whose effects take other functional forms than the simulator's (an
   energy balance with wall exchange, ISO 6358 leaks, a seal-gap leak, three weighted plays,
   elasto-plastic friction, a second-order sensor with gain error and offsets, a continuous
-  delay, a second-order lag, a supply through a drooping regulator and a hose, extra mass) and include effects on no list (a valve null
-  offset, a pressure-dependent valve gain, end-stop cushioning: the right answer is
-  ``unlisted`` with their subsystem); pairs of a strong and a weak effect;
+  delay, a second-order lag, a supply through a drooping regulator and a hose, extra mass)
+  and include effects on no list (a valve null offset, a pressure-dependent valve gain,
+  end-stop cushioning: the right answer is ``unlisted`` with their subsystem); pairs of a
+  strong and a weak effect;
 - ``model``: the simulator's own effects (the candidates' forms, plus a multi-element
   hysteresis), the check of earlier versions, kept for comparison.
 

@@ -4,10 +4,11 @@ Per sub-step of length h = dt / substeps (8 by default, the model integrates in 
 
 1. the command enters the delay line; the valve chain advances exactly behind the continuous
    delay, then the extra lag, the plays and the null offset give u_eq (:mod:`valve`);
-2. the regulator and the hose advance (the supply_droop effect); the valve flows (Eq. 8 by similarity,
-   pressure-dependent gain) and the ISO 6358 leaks move gas mass (and enthalpy) at fixed volume
-   (:mod:`chambers`), by Heun's rule (second order: the flows at the start and at the Euler
-   prediction, averaged; u_eq the valve's output averaged over the sub-step);
+2. the regulator and the hose advance (the supply_droop effect); the valve flows (Eq. 8 by
+   similarity, pressure-dependent gain) and the ISO 6358 and seal-gap leaks move gas mass (and
+   enthalpy) at fixed volume (:mod:`chambers`), by Heun's rule (second order: the flows at the
+   start and at the Euler prediction, averaged; u_eq the valve's output averaged over the
+   sub-step);
 3. the piston's velocity and position advance implicitly under the pressures so reached (the
    gas spring linearised implicit as well), with stick-slip or bristles, cushions and the
    inelastic end stops (:mod:`mechanics`);
