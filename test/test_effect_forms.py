@@ -5,14 +5,20 @@ import math
 import numpy as np
 import pytest
 
+from scipy import optimize
+
+from jetpipe_ros.diagnosis.candidates import CANDIDATES
 from jetpipe_ros.model import Actuator, ModelParams, simulate
+from jetpipe_ros.model import kernel
 from jetpipe_ros.model.chamber import pressure_temperature_rates
-from jetpipe_ros.model.flow import orifice_flow
+from jetpipe_ros.model.flow import flow_polynomial, orifice_flow, power_leak
 from jetpipe_ros.model.friction import friction_parameters
+from jetpipe_ros.model.params import FLOW_COEFFICIENTS
 
 P = ModelParams()
 LOCKED = P.with_values({"mechanics.locked": True})
 RT = 287.0 * 298.15
+COEF = np.array(FLOW_COEFFICIENTS)
 
 
 def test_orifice_flow_is_choked_below_the_critical_ratio():
@@ -121,3 +127,109 @@ def test_driven_replay_reproduces_the_free_simulation():
 def test_drive_shape_is_checked():
     with pytest.raises(ValueError, match="drive must have shape"):
         Actuator(P).run(np.zeros(5), drive=np.zeros((4, 4)))
+
+
+# --- the power-law leak ---------------------------------------------------------------------------
+
+def test_power_leak_follows_its_law_and_is_linear_near_equal_pressures():
+    """q = k sign(dp) (|dp| / 1 bar)^n: at n = 0.5 four times the difference doubles the flow
+    (turbulent), at n = 1 it quadruples it (laminar); below 1 kPa the law is the straight line
+    through its value there."""
+    k = 2e-5
+    assert power_leak(k, 0.5, 5e5, 1e5) == pytest.approx(k * 2.0, rel=1e-12)  # 4 bar
+    assert power_leak(k, 0.5, 2e5, 1e5) == pytest.approx(k, rel=1e-12)  # 1 bar
+    assert power_leak(k, 1.0, 5e5, 1e5) == pytest.approx(k * 4.0, rel=1e-12)
+    assert power_leak(k, 0.75, 1e5, 9e5) == pytest.approx(-k * 8.0 ** 0.75, rel=1e-12)
+    at_edge = k * (1e3 / 1e5) ** 0.5
+    assert power_leak(k, 0.5, 4e5 + 1e3, 4e5) == pytest.approx(at_edge, rel=1e-12)
+    assert power_leak(k, 0.5, 4e5 + 250.0, 4e5) == pytest.approx(0.25 * at_edge, rel=1e-9)
+    assert power_leak(k, 0.5, 4e5, 4e5) == 0.0
+
+
+def test_power_leak_with_exponent_one_is_the_laminar_leak():
+    """n = 1, flows at 1 bar = 1e5 times the laminar conductances: the same trace."""
+    u = np.where(np.arange(4000) < 2000, 1.73, -2.5)
+    laminar = simulate(LOCKED.with_effect("leakage", cross_coefficient=1e-9,
+                                          atmosphere_coefficient=3e-10), u)
+    power = simulate(LOCKED.with_effect("leakage", form="power", cross_flow=1e-4,
+                                        atmosphere_flow=3e-5, exponent=1.0), u)
+    assert np.abs(laminar.p1 - simulate(LOCKED, u).p1).max() > 5e4  # the leak shows
+    assert np.abs(power.p1 - laminar.p1).max() < 1e-3
+    assert np.abs(power.p2 - laminar.p2).max() < 1e-3
+
+
+def test_square_root_cross_leak_locked_equilibrium():
+    """Locked at 1.73 V with q = k sqrt(dp / 1 bar) across the piston, k = 1e-4 kg/s:
+    q(u, p1) = k sqrt((p1 - p2) / 1 bar) = -q(-u, p2) (Eq. 8 at 10 bar, brentq on p1 with
+    p2 = p1 - 1 bar (q(u, p1) / k)^2)."""
+    k, u = 1e-4, 1.73
+
+    def q(v, p):
+        return flow_polynomial(COEF, v, p / 1e5)
+
+    def p2_of(p1):
+        return p1 - 1e5 * (q(u, p1) / k) ** 2
+
+    p1 = optimize.brentq(lambda p: q(u, p) + q(-u, p2_of(p)), 4.2e5, 7.3e5)
+    trace = simulate(LOCKED.with_effect("leakage", form="power", cross_flow=k,
+                                        exponent=0.5), np.full(8000, u))
+    assert trace.p1[-1] == pytest.approx(p1, abs=100.0)
+    assert trace.p2[-1] == pytest.approx(p2_of(p1), abs=100.0)
+    tight = simulate(LOCKED, np.full(8000, u))  # 7.36 / 1.53 bar
+    assert (tight.p1[-1] - tight.p2[-1]) - (p1 - p2_of(p1)) > 3e4  # 7.15 / 1.78 bar
+
+
+# --- the supply line ------------------------------------------------------------------------------
+
+def _line_run(u: float, p_set: float, conductance: float, volume: float, n: int):
+    """Supply pressure [Pa] sample by sample and u_eq [V], the chambers held at atmosphere (the
+    flow map at p = 1 bar: the valve draws span * Eq. 8(u_eq, 1 bar) into chamber 1, nothing
+    from chamber 2, which cannot vent below atmosphere)."""
+    act = Actuator(P.with_effect("supply_pressure", form="line", pressure=p_set,
+                                 line_conductance=conductance, line_volume=volume))
+    drive = np.array([[np.nan, np.nan, 1e5, 1e5]])
+    supply, u_eq = [], []
+    for _ in range(n):
+        out = act.run(np.array([u]), np.zeros(1), drive)
+        supply.append(act.state[kernel.SUPPLY])
+        u_eq.append(out[0, kernel.OUT_UEQ])
+    return np.array(supply), np.array(u_eq)
+
+
+def test_supply_line_settles_at_the_set_pressure_less_the_drawn_flow_over_the_conductance():
+    """Chambers at 1 bar: the flow drawn is alpha (p_s - p_atm), alpha = Eq. 8(u_eq, 1 bar) / 9
+    bar, so V / (r T) dp_s/dt = G (p_set - p_s) - alpha (p_s - p_atm) is linear: it settles at
+    p* = (G p_set + alpha p_atm) / (G + alpha) = p_set - Q* / G with Q* = alpha (p* - p_atm),
+    with time constant tau = V / (r T (G + alpha))."""
+    p_set, g, vol = 9e5, 4e-8, 2e-4
+    supply, u_eq = _line_run(3.4, p_set, g, vol, 800)
+    assert np.all(u_eq[25:] == 3.0)  # the jet pipe at its stop after 25 ms
+    assert flow_polynomial(COEF, -u_eq[-1], 1.0) < 0.0  # chamber 2 draws nothing
+    alpha = flow_polynomial(COEF, u_eq[-1], 1.0) / 9e5
+    steady = (g * p_set + alpha * 1e5) / (g + alpha)
+    drawn = alpha * (steady - 1e5)
+    assert drawn > 3e-3  # a realistic flow: the supply sags by 1.3 bar
+    assert steady == pytest.approx(p_set - drawn / g)
+    assert supply[-1] == pytest.approx(steady, abs=1.0)
+    tau = vol / (RT * (g + alpha))  # 49 ms
+    t = np.arange(supply.size) * 1e-3 + 1e-3
+    later = (t > 0.03) & (t < 0.2)
+    slope = np.polyfit(t[later], np.log(supply[later] - steady), 1)[0]
+    assert -1.0 / slope == pytest.approx(tau, rel=0.01)
+
+
+def test_supply_line_at_its_conductance_bound_is_the_constant_supply():
+    """The line candidate where it vanishes (a conductance of 1e-5 kg/(s Pa): a sag of at most
+    7 g/s / 1e-5 = 0.7 kPa) leaves the response within the pressure sensors' noise (500 Pa)
+    of the nominal model's; the power-law leak there (no flow) is the nominal model."""
+    u = 2.5 * np.sign(np.sin(2 * np.pi * 1.3 * np.arange(3000) * 1e-3))
+    base = simulate(P, u)
+    for name in ("supply_pressure:line", "leakage:power"):
+        cand = CANDIDATES[name]
+        off = {k.name: k.off for k in cand.knobs}
+        trace = simulate(cand.apply(P, off), u)
+        assert np.abs(trace.p1 - base.p1).max() < 500.0, name
+        assert np.abs(trace.y - base.y).max() < 1e-5, name
+        typical = simulate(cand.apply(P, cand.typical), u)
+        assert np.abs(typical.p1 - base.p1).max() > 2e3, name  # 4 x noise at its typical size
+        assert all(k.low <= k.off <= k.high for k in cand.knobs)

@@ -20,6 +20,11 @@ EFFECTS = {
                                                   "effects.leakage.form": "orifice",
                                                   "effects.sensor_dynamics.enabled": True},
     "three sub-steps": {"integration.substeps": 3},
+    "supply line, power-law leaks": {"effects.supply_pressure.enabled": True,
+                                     "effects.supply_pressure.form": "line",
+                                     "effects.leakage.enabled": True,
+                                     "effects.leakage.form": "power",
+                                     "effects.leakage.atmosphere_flow": 2e-5},
 }
 
 

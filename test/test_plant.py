@@ -23,7 +23,8 @@ from jetpipe_ros.model.params import FLOW_COEFFICIENTS, FRICTION_PLANES
 from jetpipe_ros.model.valve import valve_tf
 from jetpipe_ros.plant import (EFFECT_PARAMS, REAL_EFFECTS, Plant, PlantError, PlantSpec,
                                campaign_dataset, simulate)
-from jetpipe_ros.plant.chambers import iso6358_flow
+from jetpipe_ros.plant import constants as layout
+from jetpipe_ros.plant.chambers import gap_flow, iso6358_flow
 from jetpipe_ros.plant.valve import valve_inflow
 
 REPO = Path(__file__).resolve().parent.parent
@@ -302,23 +303,107 @@ def test_pressure_dependent_gain_scales_the_pressure_rise():
     assert rise / base == pytest.approx(factor, rel=2e-4)
 
 
-def test_supply_droops_with_the_flow_drawn():
-    """Locked at 3 V: the supply follows p_set - R Q through its first-order line, Q the flow
-    filling chamber 1 (as the valve draws it at that supply), within 1 % of the droop."""
-    p_set, droop, tau = 8e5, 2e7, 0.005
+def test_supply_droops_through_the_regulator_curve_and_the_hose():
+    """Locked at 3 V with chamber 1 venting through an ISO leak to atmosphere, the valve draws
+    a steady flow Q: then the hose carries Q, the regulator's outlet sits on its droop curve
+    p_r = p_set - R Q - S Q^2 and the valve sees p_s = p_r - Q / G_h. The same sag through one
+    linear line would be a straight line in Q; here the quadratic term is a third of it."""
+    p_set, droop, quad, g_h = 8e5, 1e7, 5e9, 2e-7
     plant = Plant(PlantSpec(LOCKED).with_effect("supply_droop", set_pressure=p_set, droop=droop,
-                                                time_constant=tau))
-    supply, target = [], []
-    for _ in range(500):
-        out = plant.step(3.0)
-        supply.append(plant.supply_pressure)
-        target.append(p_set - droop * valve_inflow(COEF, out[k.OUT_UEQ], out[k.OUT_P1],
-                                                   supply[-1], 1.0, 1.0, 0.0))
-    lagged = signal.lfilter([1 - math.exp(-1e-3 / tau)], [1, -math.exp(-1e-3 / tau)],
-                            target[:-1], zi=[p_set * math.exp(-1e-3 / tau)])[0]
-    drop = p_set - min(supply)
-    assert drop > 2e4
-    assert np.abs(np.array(supply[1:]) - lagged)[20:].max() < 0.01 * drop
+                                                droop_quadratic=quad, time_constant=0.01,
+                                                hose_conductance=g_h, hose_volume=1e-4)
+                  .with_effect("iso6358_leak", cross_conductance=0.0,
+                               atmosphere_conductance=3e-9, critical_ratio=0.3))
+    out = plant.run(np.full(3000, 3.0))[-1]
+    drawn = valve_inflow(COEF, out[k.OUT_UEQ], out[k.OUT_P1], plant.supply_pressure, 1.0, 1.0,
+                         0.0)
+    assert drawn > 1e-3
+    outlet = p_set - droop * drawn - quad * drawn ** 2
+    assert plant.state[layout.REGULATOR] == pytest.approx(outlet, abs=1.0)
+    assert plant.supply_pressure == pytest.approx(outlet - drawn / g_h, abs=1.0)
+    assert quad * drawn ** 2 > 0.3 * (p_set - plant.supply_pressure)
+
+
+def test_supply_hose_fills_with_its_time_constant():
+    """Chambers on regulators (the valve draws nothing through them), a regulator without
+    droop (its outlet at p_set): a hose started 1 bar low fills as e^(-t / tau),
+    tau = V_h / (r T G_h)."""
+    g_h, vol = 2e-7, 1e-4
+    plant = Plant(PlantSpec(P.with_values({"chamber.regulated": True})).with_effect(
+        "supply_droop", set_pressure=8e5, droop=0.0, droop_quadratic=0.0, time_constant=1e-3,
+        hose_conductance=g_h, hose_volume=vol))
+    plant.state[layout.SUPPLY] = 7e5
+    tau = vol / (RT * g_h)  # 5.8 ms
+    for step in range(1, 11):
+        plant.step(0.0)
+        assert 8e5 - plant.supply_pressure == pytest.approx(1e5 * math.exp(-step * 1e-3 / tau),
+                                                             rel=1e-6)
+
+
+# --- seal-gap leak --------------------------------------------------------------------------------
+
+MU = 1.84e-5
+
+
+def _gap(w, d, length, zeta, p_a, p_b, rt):
+    """dp = a q + b q^2 (viscous slot flow at the mean density, zeta dynamic heads) solved for
+    q by numpy's roots."""
+    rho = 0.5 * (p_a + p_b) / rt
+    a = 12 * MU * length / (rho * w * d ** 3)
+    b = zeta / (2 * rho * (w * d) ** 2)
+    roots = np.roots([b, a, -(p_a - p_b)])
+    return float(roots[roots > 0][0])
+
+
+def test_seal_gap_flow_is_viscous_at_small_and_turbulent_at_large_differences():
+    w, d, length, zeta = 3e-3, 2e-5, 1e-3, 1.5
+    for p_b in (1e5, 4e5, 6.9e5):
+        assert gap_flow(w, d, length, zeta, 7e5, p_b, RT) == pytest.approx(
+            _gap(w, d, length, zeta, 7e5, p_b, RT), rel=1e-9)
+    assert gap_flow(w, d, length, zeta, 2e5, 7e5, RT) == pytest.approx(
+        -_gap(w, d, length, zeta, 7e5, 2e5, RT), rel=1e-9)
+    # No loss: isothermal compressible slot flow, w d^3 (p_a^2 - p_b^2) / (24 mu L r T).
+    assert gap_flow(w, d, length, 0.0, 7e5, 2e5, RT) == pytest.approx(
+        w * d ** 3 * (7e5 ** 2 - 2e5 ** 2) / (24 * MU * length * RT), rel=1e-9)
+    # No length: the loss alone, q = w d sqrt(2 rho_m dp / zeta).
+    assert gap_flow(w, d, 1e-12, zeta, 7e5, 2e5, RT) == pytest.approx(
+        w * d * math.sqrt(2 * 4.5e5 / RT * 5e5 / zeta), rel=1e-6)
+    # Between: the local exponent d ln q / d ln dp (the mean density rising with p_a) is 1 at
+    # small differences, 0.78 at 3 bar: neither laminar nor an orifice.
+    def exponent(dp):
+        up = gap_flow(w, d, length, zeta, 4e5 + 1.01 * dp, 4e5, RT)
+        return math.log(up / gap_flow(w, d, length, zeta, 4e5 + dp, 4e5, RT)) / math.log(1.01)
+    assert exponent(1e2) > 0.99 and 0.7 < exponent(3e5) < 0.85
+
+
+def test_seal_gap_leak_sets_the_locked_equilibrium():
+    """Locked at 1.73 V with a seal gap across the piston: q(u, p1) = gap(p1, p2) = -q(-u, p2)
+    (Eq. 8 at 10 bar; fsolve on the two pressures)."""
+    gap = {"width": 4e-3, "height": 2e-5, "length": 1e-3, "loss_coefficient": 1.5}
+    plant = Plant(PlantSpec(LOCKED).with_effect("seal_gap_leak", **gap))
+    out = plant.run(np.full(8000, 1.73))[-1]
+    args = (gap["width"], gap["height"], gap["length"], gap["loss_coefficient"])
+
+    def balance(p):
+        leak = _gap(*args, p[0], p[1], RT)
+        return [(chamber_inflow(COEF, 1.73, p[0], 1e6) - leak) * 1e4,
+                (chamber_inflow(COEF, -1.73, p[1], 1e6) + leak) * 1e4]
+
+    p1, p2 = optimize.fsolve(balance, [6e5, 3e5], xtol=1e-12)
+    assert out[k.OUT_P1] == pytest.approx(p1, abs=50.0)
+    assert out[k.OUT_P2] == pytest.approx(p2, abs=50.0)
+    nulls = [optimize.brentq(lambda p: chamber_inflow(COEF, u, p, 1e6), 1.1e5, 9.9e5)
+             for u in (1.73, -1.73)]  # 7.36 / 1.53 bar without the leak
+    assert (nulls[0] - nulls[1]) - (p1 - p2) > 2e4  # 7.24 / 1.67 bar
+
+
+def test_seal_gap_sampler_draws_a_few_percent_of_the_rated_flow():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        g = REAL_EFFECTS["seal_gap_leak"].sample(rng)
+        q = _gap(g["width"], g["height"], g["length"], g["loss_coefficient"], 7e5, 2e5,
+                 287.0 * 298.15)
+        assert 0.5e-4 <= q <= 1.5e-4
 
 
 # --- mechanics -----------------------------------------------------------------------------------

@@ -4,16 +4,20 @@ could show the effect at all.
 
 Ranges are wider than the typical sizes of docs/effects.md so a real effect is not clipped, and
 each contains the value at which the effect vanishes (zero delay, hysteresis, leak, bias; n = 1;
-the nominal supply and mass; a corner, wall heat conductance or bristle stiffness high enough, or a
-pre-sliding displacement short enough, to be invisible), so a fit to data without the effect can
-land on "no effect". The forms the physics admits are candidates of their own, judged on held-out
-data like the effects: the valve lag of first order (a corner) or second order (a natural frequency
-and a damping ratio); the thermal effect as a polytropic index or as gas temperatures exchanging
-heat with the walls; leaks as laminar conductances or compressible (choked) orifices, each across
-the piston and to atmosphere; dynamic friction as LuGre bristles or as Maxwell-slip elements (what
-real seals show, docs/friction.md), the elements' spread a knob of its extent. Where forms blend
-continuously a knob spans them: the hysteresis is eight play operators whose thresholds spread from
-one sharp loop (spread 0) to a rounded Prandtl-Ishlinskii loop (spread 1).
+the nominal supply and mass; a corner, wall heat conductance, bristle stiffness or supply line
+conductance high enough, or a pre-sliding displacement short enough, to be invisible), so a fit
+to data without the effect can land on "no effect". The forms the physics admits are candidates
+of their own, judged on held-out data like the effects: the valve lag of first order (a corner)
+or second order (a natural frequency and a damping ratio); the thermal effect as a polytropic
+index or as gas temperatures exchanging heat with the walls; leaks as laminar conductances,
+compressible (choked) orifices, or a flow that grows as the pressure difference to a fitted
+power, each across the piston and to atmosphere; the supply constant, or a line (volume and
+conductance) fed from a set pressure and drained by the flow the valve draws; dynamic friction
+as LuGre bristles or as Maxwell-slip elements (what real seals show, docs/friction.md), the
+elements' spread a knob of its extent. Where forms blend continuously a knob spans them: the
+hysteresis is eight play operators whose thresholds spread from one sharp loop (spread 0) to a
+rounded Prandtl-Ishlinskii loop (spread 1); the power-law leak's exponent runs from a turbulent,
+orifice-like leak (0.5) to a laminar one (1).
 """
 
 from __future__ import annotations
@@ -151,7 +155,13 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     Candidate("valve_hysteresis", (Knob("half_width", 0.0, 0.6, 0.0),
                                    Knob("spread", 0.0, 1.0, 0.0, tries=(1.0,), extent=True)),
               {"half_width": 0.25, "spread": 0.0}, {"elements": 8}),
-    Candidate("supply_pressure", (Knob("pressure", 4e5, 1.1e6, 1e6),), {"pressure": 8e5}),
+    Candidate("supply_pressure", (Knob("pressure", 4e5, 1.1e6, 1e6),), {"pressure": 8e5},
+              {"form": "constant"}),
+    Candidate("supply_pressure:line", (Knob("line_conductance", 3e-9, 1e-5, 1e-5, log=True),
+                                       Knob("pressure", 4e5, 1.1e6, 1e6),
+                                       Knob("line_volume", 1e-6, 1e-3, 1e-6, log=True)),
+              {"line_conductance": 5e-8, "pressure": 9e5, "line_volume": 1e-4},
+              {"form": "line"}),
     Candidate("thermal:polytropic", (Knob("polytropic_index", 1.0, 1.4, 1.0),),
               {"polytropic_index": 1.2}, {"form": "polytropic"}),
     Candidate("thermal:heat_transfer", (Knob("heat_transfer", 0.05, 100.0, 100.0, log=True),),
@@ -163,6 +173,11 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     Candidate("leakage:orifice", (Knob("cross_area", 0.0, 4e-7, 0.0),
                                   Knob("atmosphere_area", 0.0, 4e-7, 0.0, tries=(5e-8,))),
               {"cross_area": 1e-7, "atmosphere_area": 0.0}, {"form": "orifice"}),
+    Candidate("leakage:power", (Knob("cross_flow", 0.0, 3e-4, 0.0),
+                                Knob("atmosphere_flow", 0.0, 3e-4, 0.0, tries=(5e-5,)),
+                                Knob("exponent", 0.5, 1.0, 0.75, extent=True)),
+              {"cross_flow": 3e-5, "atmosphere_flow": 0.0, "exponent": 0.75},
+              {"form": "power"}),
     Candidate("friction_dynamics:lugre", (Knob("bristle_stiffness", 1e3, 1e7, 1e7, log=True),
                                           Knob("bristle_damping", 0.0, 3e3, 0.0)),
               {"bristle_stiffness": 1e5, "bristle_damping": 0.0}, {"form": "lugre"}),

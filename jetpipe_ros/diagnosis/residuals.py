@@ -132,7 +132,7 @@ def _equivalent_voltage(params: ModelParams, rec: Record, dt: float) -> np.ndarr
 def chamber_errors(params: ModelParams, rec: Record, dt: float) -> tuple[np.ndarray, ...]:
     """Mass-balance errors of chambers 1 and 2 [kg/s equivalent] at every sample, and the
     model's inflows q1, q2 [kg/s] and flow sensitivities dq/du [kg/(s V)] there."""
-    c = build_constants(params)
+    c = build_constants(params.at_sample_time(dt))  # rows dt apart (the supply line's state)
     u_eq = _equivalent_voltage(params, rec, dt)
     y = rec.smooth["y"] if not rec.locked else np.full(rec.t.size, rec.smooth["y"][0])
     v = rec.v

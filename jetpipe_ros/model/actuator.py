@@ -54,7 +54,9 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
     heat_transfer = thermal and p["effects.thermal.form"] == "heat_transfer"
     leakage = p["effects.leakage.enabled"]
     orifice = leakage and p["effects.leakage.form"] == "orifice"
-    laminar = leakage and not orifice
+    power = leakage and p["effects.leakage.form"] == "power"
+    laminar = leakage and p["effects.leakage.form"] == "laminar"
+    line = p["effects.supply_pressure.enabled"] and p["effects.supply_pressure.form"] == "line"
     friction_form = (FRICTION_FORMS[p["effects.friction_dynamics.form"]]
                      if p["effects.friction_dynamics.enabled"] else STATIC)
     return kernel.Constants(
@@ -66,10 +68,15 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
         gain_charge=p["flow.gain_charge"], gain_discharge=p["flow.gain_discharge"],
         valve_gain=p["valve.gain"],
         p_supply=effect("supply_pressure", "pressure", P_SUPPLY_NOMINAL),
+        line_conductance=p["effects.supply_pressure.line_conductance"] if line else 0.0,
+        line_volume=p["effects.supply_pressure.line_volume"],
         leak_cross=p["effects.leakage.cross_coefficient"] if laminar else 0.0,
         leak_atm=p["effects.leakage.atmosphere_coefficient"] if laminar else 0.0,
         orifice_cross=p["effects.leakage.cross_area"] if orifice else 0.0,
         orifice_atm=p["effects.leakage.atmosphere_area"] if orifice else 0.0,
+        power_cross=p["effects.leakage.cross_flow"] if power else 0.0,
+        power_atm=p["effects.leakage.atmosphere_flow"] if power else 0.0,
+        leak_exponent=p["effects.leakage.exponent"],
         polytropic=p["effects.thermal.polytropic_index"] if thermal and not heat_transfer
         else 1.0,
         heat_transfer=p["effects.thermal.heat_transfer"] if heat_transfer else 0.0,
@@ -146,6 +153,7 @@ class Actuator:
         x[kernel.P1] = x[kernel.PS1] = p["chamber.initial_pressure_1"]
         x[kernel.P2] = x[kernel.PS2] = p["chamber.initial_pressure_2"]
         x[kernel.T1] = x[kernel.T2] = p["chamber.temperature"]
+        x[kernel.SUPPLY] = c.p_supply
         x[kernel.STUCK] = 1.0
         self.state = x
         self.ring = np.zeros(c.delay_samples + 2)  # the current command and the delay's two
@@ -155,7 +163,8 @@ class Actuator:
 
         A real rig clamps the piston (constant-volume tests) or puts regulators on the chambers
         between experiments without resetting anything else. Position, velocity, pressures,
-        temperatures, friction state, sample count and the sensor noise sequence carry over. If
+        temperatures, friction state, the supply line's pressure, sample count and the sensor
+        noise sequence carry over. If
         the change alters the valve chain's order or delay (e.g. enabling ``valve_lag`` or
         changing ``valve.delay``), the valve chain restarts at rest.
 

@@ -6,6 +6,10 @@ atmosphere, so a chamber at or below atmospheric pressure has no outflow. A supp
 than the 10 bar of the identification (supply_pressure effect) maps the chamber pressure affinely
 from [p_atm, p_s] onto [1, 10] bar and scales the flow by (p_s - p_atm) / 9 bar: the jet-pipe's
 pressure recovery is a fixed fraction of the supply-to-atmosphere span.
+
+The leakage effect's laws are here too: the compressible orifice (:func:`orifice_flow`) and the
+power law with a free exponent (:func:`power_leak`); the laminar one is a conductance times the
+pressure difference.
 """
 
 from __future__ import annotations
@@ -122,3 +126,25 @@ def orifice_flow(area: float, p_a: float, p_b: float, rt: float) -> float:
     else:
         psi = _orifice_function(ratio)
     return sign * area * p_up / math.sqrt(rt) * psi
+
+
+#: Pressure difference [Pa] at which the power-law leak's flow is given (1 bar).
+LEAK_REFERENCE = 1.0e5
+#: Below this pressure difference [Pa] the power-law leak is linear in it (through the law's
+#: value there): a law with n < 1 has an infinite slope at equal pressures, which would make
+#: explicit integration chatter, and the flow there is negligible.
+LEAK_LINEAR = 1.0e3
+
+
+@njit(cache=True, error_model="numpy")
+def power_leak(flow: float, exponent: float, p_a: float, p_b: float) -> float:
+    """Leak mass flow [kg/s] from ``p_a`` to ``p_b`` [Pa] with a free exponent:
+    q = flow sign(dp) (|dp| / 1 bar)^n, dp = p_a - p_b, ``flow`` [kg/s] the leak at 1 bar,
+    ``exponent`` n in [0.5, 1] (1: laminar, 0.5: turbulent); linear in dp below
+    :data:`LEAK_LINEAR`. Negative when the flow goes from b to a."""
+    dp = p_a - p_b
+    if flow == 0.0 or dp == 0.0:
+        return 0.0
+    if abs(dp) < LEAK_LINEAR:
+        return flow * (LEAK_LINEAR / LEAK_REFERENCE) ** exponent * (dp / LEAK_LINEAR)
+    return math.copysign(flow * (abs(dp) / LEAK_REFERENCE) ** exponent, dp)

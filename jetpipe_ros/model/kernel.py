@@ -9,7 +9,10 @@ of length h:
    chain is linear and the command held over a sample, so it advances a whole sample at a time
    (:class:`~jetpipe_ros.model.valve.SampledValve`), its sub-step outputs included;
 2. the hysteresis play operator (effect) and the jet-pipe saturation give u_eq;
-3. the flow map, leakage (effect) and Eq. 11-12 advance the pressures explicitly;
+3. the flow map, leakage (effect) and Eq. 11-12 advance the pressures explicitly; with the
+   supply line (effect) the supply pressure the flow map sees is a state, the line volume fed
+   through the line conductance from the set pressure and drained by the flow the valve draws
+   into the chambers, advanced exactly over the sub-step at that flow;
 4. the piston velocity advances with the viscous friction implicit (F_v/M reaches ~4000 1/s),
    and Eq. 15's stick condition is checked whenever the velocity reaches or crosses zero, so
    stick-slip cannot chatter; with the friction_dynamics effect a LuGre bristle state or
@@ -37,7 +40,8 @@ from numba import njit
 
 from jetpipe_ros.model.chamber import (chamber_volumes, pressure_rates,
                                       pressure_temperature_rates)
-from jetpipe_ros.model.flow import GAMMA_AIR, P_ATM, chamber_inflow, orifice_flow
+from jetpipe_ros.model.flow import (GAMMA_AIR, P_ATM, chamber_inflow, orifice_flow,
+                                    power_leak)
 from jetpipe_ros.model.friction import (LUGRE, MAX_ELEMENTS, MAXWELL_SLIP, friction_parameters,
                                         lugre_step, maxwell_slip_force, maxwell_slip_step,
                                         sliding_levels, static_friction, stribeck_force)
@@ -45,8 +49,8 @@ from jetpipe_ros.model.valve import U_EQ_MAX, U_EQ_MIN
 
 # State layout: scalars, then the hysteresis play operators, the Maxwell-slip elements, then the
 # valve chain.
-Y, V, P1, P2, STUCK, Z, PS1, PS2, STEP, HEAD, UCMD, UEQ, FRICTION, T1, T2 = range(15)
-PLAY = 15  #: first of the MAX_PLAY hysteresis play-operator outputs
+Y, V, P1, P2, STUCK, Z, PS1, PS2, STEP, HEAD, UCMD, UEQ, FRICTION, T1, T2, SUPPLY = range(16)
+PLAY = 16  #: first of the MAX_PLAY hysteresis play-operator outputs
 MAX_PLAY = 8
 ELEMENT = PLAY + MAX_PLAY  #: first of the MAX_ELEMENTS Maxwell-slip normalised deflections
 VALVE = ELEMENT + MAX_ELEMENTS  #: first of the valve chain's states
@@ -79,11 +83,16 @@ class Constants(NamedTuple):
     gain_charge: float  #: factor on the flow filling a chamber
     gain_discharge: float  #: factor on the flow emptying a chamber
     valve_gain: float  #: u_eq per u_f (jet-pipe deflection per volt relative to Eq. 5)
-    p_supply: float  #: supply pressure [Pa]
+    p_supply: float  #: supply pressure [Pa] (with the line: the set pressure feeding it)
+    line_conductance: float  #: supply line conductance [kg/(s Pa)], 0 = constant supply
+    line_volume: float  #: supply line volume [m^3]
     leak_cross: float  #: conductance chamber 1 -> 2 [kg/(s Pa)]
     leak_atm: float  #: conductance of each chamber to atmosphere [kg/(s Pa)]
     orifice_cross: float  #: orifice leak area chamber 1 -> 2 [m^2]
     orifice_atm: float  #: orifice leak area of each chamber to atmosphere [m^2]
+    power_cross: float  #: power-law leak chamber 1 -> 2 at 1 bar [kg/s]
+    power_atm: float  #: power-law leak of each chamber to atmosphere at 1 bar [kg/s]
+    leak_exponent: float  #: exponent of the power-law leaks [-]
     polytropic: float  #: polytropic index n
     heat_transfer: float  #: wall heat conductance h A [W/K], 0 = no temperature state
     r_gas: float  #: gas constant r [J/(kg K)]
@@ -205,17 +214,28 @@ def _valve_pass(c: Constants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _valve_flows(coef: np.ndarray, u_eq: float, p1: float, p2: float, p_supply: float,
+                 gain_charge: float, gain_discharge: float) -> tuple[float, float, float]:
+    """The valve's flows into chambers 1 and 2 [kg/s] (Eq. 8, the jet deflected by ``u_eq``
+    [V] toward chamber 1) and what it draws from the supply [kg/s]: the flows that fill."""
+    q1 = chamber_inflow(coef, u_eq, p1, p_supply, gain_charge, gain_discharge)
+    q2 = chamber_inflow(coef, -u_eq, p2, p_supply, gain_charge, gain_discharge)
+    return q1, q2, max(q1, 0.0) + max(q2, 0.0)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _chamber_rates(coef: np.ndarray, p_supply: float, gain_charge: float, gain_discharge: float,
                    leak_cross: float, leak_atm: float, orifice_cross: float, orifice_atm: float,
+                   power_cross: float, power_atm: float, exponent: float,
                    r_gas: float, t_wall: float, rt: float, area: float, v01: float, v02: float,
                    polytropic: float, heat_transfer: float, y: float, v: float, p1: float,
                    p2: float, t1: float, t2: float, u_eq: float
-                   ) -> tuple[float, float, float, float]:
-    """dp1/dt, dp2/dt [Pa/s] and dT1/dt, dT2/dt [K/s] (0 without the heat-transfer form) at
-    one state: the flow map, the leaks, the volumes and the pressure (and gas temperature)
-    rates, with the effects the arguments switch on (see :class:`Constants`)."""
-    q1 = chamber_inflow(coef, u_eq, p1, p_supply, gain_charge, gain_discharge)
-    q2 = chamber_inflow(coef, -u_eq, p2, p_supply, gain_charge, gain_discharge)
+                   ) -> tuple[float, float, float, float, float]:
+    """dp1/dt, dp2/dt [Pa/s], dT1/dt, dT2/dt [K/s] (0 without the heat-transfer form) and the
+    flow the valve draws from the supply into the chambers [kg/s] at one state: the flow map,
+    the leaks, the volumes and the pressure (and gas temperature) rates, with the effects the
+    arguments switch on (see :class:`Constants`)."""
+    q1, q2, drawn = _valve_flows(coef, u_eq, p1, p2, p_supply, gain_charge, gain_discharge)
     q_x = leak_cross * (p1 - p2)
     q1 += -q_x - leak_atm * (p1 - P_ATM)
     q2 += q_x - leak_atm * (p2 - P_ATM)
@@ -224,6 +244,10 @@ def _chamber_rates(coef: np.ndarray, p_supply: float, gain_charge: float, gain_d
         q_x = orifice_flow(orifice_cross, p1, p2, r_gas * t_up)
         q1 += -q_x - orifice_flow(orifice_atm, p1, P_ATM, r_gas * t1)
         q2 += q_x - orifice_flow(orifice_atm, p2, P_ATM, r_gas * t2)
+    if power_cross > 0.0 or power_atm > 0.0:
+        q_x = power_leak(power_cross, exponent, p1, p2)
+        q1 += -q_x - power_leak(power_atm, exponent, p1, P_ATM)
+        q2 += q_x - power_leak(power_atm, exponent, p2, P_ATM)
     vol1, vol2 = chamber_volumes(y, area, v01, v02)
     if heat_transfer > 0.0:
         dvol = area * v
@@ -231,9 +255,29 @@ def _chamber_rates(coef: np.ndarray, p_supply: float, gain_charge: float, gain_d
                                               heat_transfer)
         dp2, dt2 = pressure_temperature_rates(q2, p2, t2, -dvol, vol2, r_gas, t_wall,
                                               GAMMA_AIR, heat_transfer)
-        return dp1, dp2, dt1, dt2
+        return dp1, dp2, dt1, dt2, drawn
     dp1, dp2 = pressure_rates(q1, q2, p1, p2, v, vol1, vol2, area, rt, polytropic)
-    return dp1, dp2, 0.0, 0.0
+    return dp1, dp2, 0.0, 0.0, drawn
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def supply_step(p_s: float, p_set: float, conductance: float, drawn: float, decay: float
+                ) -> float:
+    """The supply line's pressure [Pa] after a step over which the valve draws ``drawn`` [kg/s]
+    from it: V dp_s/dt = r T (G (p_set - p_s) - Q), exact for Q held, with ``decay`` =
+    exp(-step / tau), tau = V / (r T G) (:func:`supply_decay`). In steady state
+    p_s = p_set - Q / G."""
+    target = p_set - drawn / conductance
+    return target + (p_s - target) * decay
+
+
+@njit(cache=True, error_model="numpy")
+def supply_decay(c: Constants, step: float) -> float:
+    """exp(-step / tau) of the supply line over ``step`` [s], tau = V / (r T G) [s] (1 with a
+    constant supply)."""
+    if c.line_conductance == 0.0:
+        return 1.0
+    return math.exp(-step * c.rt * c.line_conductance / c.line_volume)
 
 
 @njit(cache=True, error_model="numpy")
@@ -242,25 +286,31 @@ def chamber_rates(c: Constants, y: np.ndarray, v: np.ndarray, p1: np.ndarray, p2
     """What the model's chambers do at given states, sample by sample: rows dp1/dt, dp2/dt
     [Pa/s] (the gas at the wall temperature), the valve's inflows q1, q2 [kg/s] and their
     sensitivities to the equivalent voltage dq1/du_eq, dq2/du_eq [kg/(s V)]. For equation
-    errors (the diagnosis): the same rates the kernel integrates."""
+    errors (the diagnosis): the same rates the kernel integrates. With the supply line its
+    pressure starts at the set pressure and follows the drawn flow from row to row, the rows
+    ``c.dt`` apart."""
     n = y.shape[0]
     out = np.empty((6, n))
     du = 1e-3
+    line = c.line_conductance > 0.0
+    decay = supply_decay(c, c.dt)
+    p_s = c.p_supply
     for k in range(n):
-        out[0, k], out[1, k], _, _ = _chamber_rates(
-            c.flow_coef, c.p_supply, c.gain_charge, c.gain_discharge, c.leak_cross, c.leak_atm,
-            c.orifice_cross, c.orifice_atm, c.r_gas, c.t_wall, c.rt, c.area, c.v01, c.v02,
-            c.polytropic, c.heat_transfer, y[k], v[k], p1[k], p2[k], c.t_wall, c.t_wall,
-            u_eq[k])
+        out[0, k], out[1, k], _, _, drawn = _chamber_rates(
+            c.flow_coef, p_s, c.gain_charge, c.gain_discharge, c.leak_cross, c.leak_atm,
+            c.orifice_cross, c.orifice_atm, c.power_cross, c.power_atm, c.leak_exponent,
+            c.r_gas, c.t_wall, c.rt, c.area, c.v01, c.v02, c.polytropic, c.heat_transfer,
+            y[k], v[k], p1[k], p2[k], c.t_wall, c.t_wall, u_eq[k])
         for i, (sign, p) in enumerate(((1.0, p1[k]), (-1.0, p2[k]))):
             u = sign * u_eq[k]
-            out[2 + i, k] = chamber_inflow(c.flow_coef, u, p, c.p_supply, c.gain_charge,
+            out[2 + i, k] = chamber_inflow(c.flow_coef, u, p, p_s, c.gain_charge,
                                            c.gain_discharge)
             out[4 + i, k] = sign * (
-                chamber_inflow(c.flow_coef, u + du, p, c.p_supply, c.gain_charge,
-                               c.gain_discharge)
-                - chamber_inflow(c.flow_coef, u - du, p, c.p_supply, c.gain_charge,
+                chamber_inflow(c.flow_coef, u + du, p, p_s, c.gain_charge, c.gain_discharge)
+                - chamber_inflow(c.flow_coef, u - du, p, p_s, c.gain_charge,
                                  c.gain_discharge)) / (2.0 * du)
+        if line:
+            p_s = supply_step(p_s, c.p_supply, c.line_conductance, drawn, decay)
     return out
 
 
@@ -281,6 +331,8 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
     coef = c.flow_coef
     planes = c.planes
     sensor_w = 1.0 - math.exp(-h / c.sensor_tau) if c.sensor_tau > 0.0 else 0.0
+    line = c.line_conductance > 0.0
+    line_decay = supply_decay(c, h)
     driven = drive.shape[0] > 0
     for k in range(u.shape[0]):
         move = not c.locked
@@ -303,21 +355,29 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
         stuck, z, friction = x[STUCK], x[Z], x[FRICTION]
         elements = x[ELEMENT:ELEMENT + c.slips.shape[0]]
         t1, t2, ps1, ps2 = x[T1], x[T2], x[PS1], x[PS2]
+        p_s = x[SUPPLY] if line else c.p_supply
         f_l = f_load[k]
         for s in range(k * ns, (k + 1) * ns):
             if pressurise:
                 # Chambers (Eq. 11-13): flow map, leakage, volumes, pressure (and gas
                 # temperature) rates; explicit.
-                dp1, dp2, dt1, dt2 = _chamber_rates(
-                    coef, c.p_supply, c.gain_charge, c.gain_discharge, c.leak_cross,
-                    c.leak_atm, c.orifice_cross, c.orifice_atm, c.r_gas, c.t_wall, c.rt,
-                    c.area, c.v01, c.v02, c.polytropic, c.heat_transfer, y, v, p1, p2, t1, t2,
-                    u_eq[s])
+                dp1, dp2, dt1, dt2, drawn = _chamber_rates(
+                    coef, p_s, c.gain_charge, c.gain_discharge, c.leak_cross, c.leak_atm,
+                    c.orifice_cross, c.orifice_atm, c.power_cross, c.power_atm,
+                    c.leak_exponent, c.r_gas, c.t_wall, c.rt, c.area, c.v01, c.v02,
+                    c.polytropic, c.heat_transfer, y, v, p1, p2, t1, t2, u_eq[s])
                 if c.heat_transfer > 0.0:
                     t1 = max(t1 + h * dt1, 1.0)
                     t2 = max(t2 + h * dt2, 1.0)
                 p1 = max(p1 + h * dp1, MIN_PRESSURE)
                 p2 = max(p2 + h * dp2, MIN_PRESSURE)
+                if line:
+                    p_s = supply_step(p_s, c.p_supply, c.line_conductance, drawn, line_decay)
+            elif line and not c.regulated:
+                # Pressures held on measurements: the valve still draws from the line.
+                _, _, drawn = _valve_flows(coef, u_eq[s], p1, p2, p_s, c.gain_charge,
+                                           c.gain_discharge)
+                p_s = supply_step(p_s, c.p_supply, c.line_conductance, drawn, line_decay)
             if move:
                 y, v, stuck, z, friction = _mechanics_substep(
                     planes, c.area * (p1 - p2) - f_l, p1, p2, h, c.mass, c.y_max,
@@ -334,6 +394,7 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
         x[Y], x[V], x[P1], x[P2] = y, v, p1, p2
         x[STUCK], x[Z], x[FRICTION] = stuck, z, friction
         x[T1], x[T2], x[PS1], x[PS2] = t1, t2, ps1, ps2
+        x[SUPPLY] = p_s
         x[UCMD] = u[k]
         x[UEQ] = u_eq[(k + 1) * ns - 1]
         x[STEP] += 1.0

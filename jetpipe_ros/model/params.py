@@ -60,7 +60,8 @@ FRICTION_PLANES = {
     },
 }
 THERMAL_FORMS = ("polytropic", "heat_transfer")
-LEAKAGE_FORMS = ("laminar", "orifice")
+LEAKAGE_FORMS = ("laminar", "orifice", "power")
+SUPPLY_FORMS = ("constant", "line")
 LAG_FORMS = ("first_order", "second_order")
 DYNAMIC_FRICTION_FORMS = tuple(FRICTION_FORMS)
 FRICTION_UNITS = {"breakaway": "N", "stribeck_velocity": "m/s", "viscous": "N s/m", "coulomb": "N"}
@@ -181,7 +182,20 @@ _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
            "evenly in half_width * (1 +- spread) (0 = all equal, one sharp loop; 1 = from 0 "
            "to twice half_width)", "", 0.0, 1.0),
     ],
-    "supply_pressure": [_p("pressure", 8e5, "Supply pressure (absolute)", "Pa", 2e5, 1.2e6)],
+    "supply_pressure": [
+        _p("form", "constant", "Supply seen by the valve: constant, or a line volume fed "
+           "through a line conductance from the set pressure and drained by the flow the valve "
+           "draws into the chambers (a long hose, a small regulator, a shared line)",
+           choices=SUPPLY_FORMS),
+        _p("pressure", 8e5, "Supply pressure (absolute): the constant supply (form constant), "
+           "or the set pressure feeding the line (form line)", "Pa", 2e5, 1.2e6),
+        _p("line_conductance", 5e-8, "Mass flow through the line per pressure drop across it "
+           "(form line): the supply sags by the drawn flow over it in steady state", "kg/(s Pa)",
+           1e-10, 1e-3),
+        _p("line_volume", 1e-4, "Volume of the line and regulator between the line conductance "
+           "and the valve (form line): time constant line_volume / (r T line_conductance)",
+           "m^3", 1e-7, 0.1),
+    ],
     "thermal": [
         _p("form", "polytropic", "Thermal model: polytropic index, or heat transfer to the "
            "walls with a gas temperature state per chamber", choices=THERMAL_FORMS),
@@ -192,7 +206,8 @@ _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
     ],
     "leakage": [
         _p("form", "laminar", "Leak law: laminar (flow proportional to the pressure "
-           "difference) or orifice (compressible flow, choked below 0.528)",
+           "difference), orifice (compressible flow, choked below 0.528), or power (flow "
+           "proportional to the pressure difference to a fitted exponent between 0.5 and 1)",
            choices=LEAKAGE_FORMS),
         _p("cross_area", 0.0, "Effective orifice area across the piston (form orifice)", "m^2",
            0.0, 1e-5),
@@ -202,6 +217,12 @@ _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
            "(form laminar)", "kg/(s Pa)", 0.0, 1e-7),
         _p("atmosphere_coefficient", 0.0, "Leak conductance of each chamber to atmosphere "
            "(form laminar)", "kg/(s Pa)", 0.0, 1e-7),
+        _p("cross_flow", 3e-5, "Leak flow across the piston at a pressure difference of 1 bar "
+           "(form power)", "kg/s", 0.0, 1e-2),
+        _p("atmosphere_flow", 0.0, "Leak flow of each chamber to atmosphere at 1 bar above it "
+           "(form power)", "kg/s", 0.0, 1e-2),
+        _p("exponent", 0.75, "Exponent n of the pressure difference in the leak law (form "
+           "power): 1 laminar, 0.5 turbulent (orifice-like)", "", 0.5, 1.0),
     ],
     "friction_dynamics": [
         _p("form", "lugre", "Dynamic friction over the Stribeck curves of the planes: LuGre "

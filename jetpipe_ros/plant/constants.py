@@ -16,12 +16,13 @@ from jetpipe_ros.plant.valve import delayed_chain
 # State layout: scalars, the extra lag, the sensors, the plays, the measured seal's reversal
 # points, then the valve chain.
 (Y, V, M1, M2, E1, E2, P1, P2, STUCK, Z, SUPPLY, DRAWN, STEP, HEAD, UCMD, UEQ,
- FRICTION, SEAL_D, SEAL_N) = range(19)  # SEAL_D: the seal's branch direction, SEAL_N: points
-LAG = 19  #: extra valve lag: output [V], its rate [V/s]
-SENSOR1 = 21  #: chamber 1 transducer: reading [Pa], its rate [Pa/s]
-SENSOR2 = 23  #: chamber 2 transducer
-POSITION = 25  #: position transducer: its second stage's reading [m], its first stage's [m]
-PLAY = 27  #: the N_PLAY play operators' outputs [V]
+ FRICTION, SEAL_D, SEAL_N, REGULATOR) = range(20)  # SEAL_D: the seal's branch direction,
+# SEAL_N: its reversal points in use; REGULATOR: the supply regulator's outlet pressure [Pa]
+LAG = 20  #: extra valve lag: output [V], its rate [V/s]
+SENSOR1 = 22  #: chamber 1 transducer: reading [Pa], its rate [Pa/s]
+SENSOR2 = 24  #: chamber 2 transducer
+POSITION = 26  #: position transducer: its second stage's reading [m], its first stage's [m]
+PLAY = 28  #: the N_PLAY play operators' outputs [V]
 N_PLAY = 3
 SEAL = PLAY + N_PLAY  #: the measured seal's N_SEAL reversal points: x_r [m], F_r [N] each
 N_SEAL = 8
@@ -50,12 +51,20 @@ class PlantConstants(NamedTuple):
     gain_charge: float
     gain_discharge: float
     gain_slope: float  #: pressure-dependent valve gain k
+    supply_droops: bool  #: supply_droop on (else the supply stays at supply_set)
     supply_set: float  #: regulator set pressure [Pa]
-    supply_droop: float  #: [Pa s/kg]
-    supply_tau: float  #: supply line time constant [s]
+    supply_droop: float  #: regulator droop R [Pa s/kg]
+    supply_droop_2: float  #: its quadratic term S [Pa s^2/kg^2]
+    supply_tau: float  #: regulator time constant [s]
+    hose_conductance: float  #: G_h [kg/(s Pa)]
+    hose_volume: float  #: V_h [m^3]
     leak_cross: float  #: sonic conductance across the piston [m^3/(s Pa)]
     leak_atm: float  #: sonic conductance of each chamber to atmosphere [m^3/(s Pa)]
     leak_b: float  #: critical pressure ratio
+    gap_width: float  #: seal gap across the piston: width [m]; 0 = none
+    gap_height: float  #: its height [m]
+    gap_length: float  #: its length along the flow [m]
+    gap_loss: float  #: its entrance and exit loss coefficient [-]
     thermal: bool  #: energy balance with wall heat exchange on
     heat_coefficient: float  #: h_c [W/(m^2 K)]
     t_wall: float  #: wall (and isothermal gas) temperature [K]
@@ -113,7 +122,10 @@ def build_constants(spec: PlantSpec) -> PlantConstants:
     else:
         thresholds = weights = np.zeros(0)
     supply = e.get("supply_droop", {"set_pressure": P_SUPPLY_NOMINAL, "droop": 0.0,
-                                    "time_constant": 1.0})
+                                    "droop_quadratic": 0.0, "time_constant": 1.0,
+                                    "hose_conductance": 1.0, "hose_volume": 1.0})
+    gap = e.get("seal_gap_leak", {"width": 0.0, "height": 0.0, "length": 0.0,
+                                  "loss_coefficient": 0.0})
     leak = e.get("iso6358_leak", {"cross_conductance": 0.0, "atmosphere_conductance": 0.0,
                                   "critical_ratio": 0.5})
     heat = e.get("wall_heat_exchange")
@@ -140,10 +152,14 @@ def build_constants(spec: PlantSpec) -> PlantConstants:
         flow_coef=np.array(p["flow.coefficients"], dtype=float),
         gain_charge=p["flow.gain_charge"], gain_discharge=p["flow.gain_discharge"],
         gain_slope=e.get("pressure_dependent_gain", {}).get("slope", 0.0),
+        supply_droops="supply_droop" in e,
         supply_set=supply["set_pressure"], supply_droop=supply["droop"],
-        supply_tau=supply["time_constant"],
+        supply_droop_2=supply["droop_quadratic"], supply_tau=supply["time_constant"],
+        hose_conductance=supply["hose_conductance"], hose_volume=supply["hose_volume"],
         leak_cross=leak["cross_conductance"], leak_atm=leak["atmosphere_conductance"],
         leak_b=leak["critical_ratio"],
+        gap_width=gap["width"], gap_height=gap["height"], gap_length=gap["length"],
+        gap_loss=gap["loss_coefficient"],
         thermal=heat is not None,
         heat_coefficient=heat["heat_transfer_coefficient"] if heat else 0.0,
         t_wall=p["chamber.temperature"],

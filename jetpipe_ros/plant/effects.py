@@ -2,7 +2,8 @@
 named by (docs/effects.md) or ``unlisted``, and a sampler of realistic sizes.
 
 Sizes are the typical sizes of docs/effects.md read through each form (e.g. a transducer whose
-equivalent lag 2 zeta / w_n falls in 1-13 ms, a leak of a few % of the valve's rated flow), and
+equivalent lag 2 zeta / w_n falls in 1-13 ms, a leak of a few % of the valve's rated flow, a
+supply that sags 0.4-1.4 bar at 3 g/s through its regulator and hose), and
 for the effects on no list, sizes that matter on a real bench (a null offset of 0.05-0.2 V, a
 cushion of 2-4 mm, a load spring of 3-20 kN/m, a position transducer lagging 2-8 ms).
 """
@@ -14,6 +15,8 @@ from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
+
+from jetpipe_ros.plant.chambers import gap_flow
 
 
 class RealEffect(NamedTuple):
@@ -42,6 +45,21 @@ def _plays(rng: np.random.Generator) -> dict[str, float]:
         out[f"threshold_{i + 1}"] = float(thresholds[i])
         out[f"weight_{i + 1}"] = float(weights[i])
     return out
+
+
+#: The seal-gap leak's size is drawn as its flow at 7 bar against 2 bar, gas at 25 degC.
+_GAP_UP, _GAP_DOWN, _GAP_RT = 7e5, 2e5, 287.0 * 298.15
+
+
+def _seal_gap(rng: np.random.Generator) -> dict[str, float]:
+    """A gap 15-25 um high and 0.5-1.5 mm long, loss 1.2-2 dynamic heads, as wide as gives a
+    leak of 0.5-1.5e-4 kg/s at 7 against 2 bar (a few % of the valve's rated 3-7 g/s; the
+    flow is proportional to the width)."""
+    gap = {"height": float(rng.uniform(15e-6, 25e-6)), "length": float(rng.uniform(5e-4, 1.5e-3)),
+           "loss_coefficient": float(rng.uniform(1.2, 2.0))}
+    per_width = gap_flow(1.0, gap["height"], gap["length"], gap["loss_coefficient"], _GAP_UP,
+                         _GAP_DOWN, _GAP_RT)
+    return {"width": float(rng.uniform(0.5e-4, 1.5e-4)) / per_width, **gap}
 
 
 def _bristles(rng: np.random.Generator) -> dict[str, float]:
@@ -85,8 +103,12 @@ REAL_EFFECTS: dict[str, RealEffect] = {
         "natural_frequency": _log_uniform(r, 15.0, 60.0),
         "damping_ratio": float(r.uniform(0.5, 1.0))}),
     "supply_droop": RealEffect("valve", "supply_pressure", lambda r: {
-        "set_pressure": float(r.uniform(6.5e5, 9e5)), "droop": float(r.uniform(1e7, 3e7)),
-        "time_constant": float(r.uniform(5e-3, 2e-2))}),
+        "set_pressure": float(r.uniform(6.5e5, 9e5)), "droop": float(r.uniform(0.5e7, 1.5e7)),
+        "droop_quadratic": float(r.uniform(2e9, 7e9)),
+        "time_constant": float(r.uniform(5e-3, 2e-2)),
+        "hose_conductance": float(r.uniform(1e-7, 3e-7)),
+        "hose_volume": _log_uniform(r, 5e-5, 2.5e-4)}),
+    "seal_gap_leak": RealEffect("chamber", "leakage", _seal_gap),
     "extra_mass": RealEffect("mechanics", "moving_mass", lambda r: {
         "mass": float(r.choice([r.uniform(-0.5, -0.3), r.uniform(1.0, 4.0)]))}),
     "null_offset": RealEffect("valve", "unlisted", lambda r: {

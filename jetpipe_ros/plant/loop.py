@@ -4,10 +4,11 @@ Per sub-step of length h = dt / substeps (8 by default, the model integrates in 
 
 1. the command enters the delay line; the valve chain advances exactly behind the continuous
    delay, then the extra lag, the plays and the null offset give u_eq (:mod:`valve`);
-2. the supply line relaxes toward its drooped pressure; the valve flows (Eq. 8 by similarity,
-   pressure-dependent gain) and the ISO 6358 leaks move gas mass (and enthalpy) at fixed volume
-   (:mod:`chambers`), by Heun's rule (second order: the flows at the start and at the Euler
-   prediction, averaged; u_eq the valve's output averaged over the sub-step);
+2. the regulator and the hose advance (the supply_droop effect); the valve flows (Eq. 8 by
+   similarity, pressure-dependent gain) and the ISO 6358 and seal-gap leaks move gas mass (and
+   enthalpy) at fixed volume (:mod:`chambers`), by Heun's rule (second order: the flows at the
+   start and at the Euler prediction, averaged; u_eq the valve's output averaged over the
+   sub-step);
 3. the piston's velocity and position advance implicitly under the pressures so reached (the
    gas spring linearised implicit as well), with stick-slip, bristles or a measured seal
    (:mod:`seal`), cushions and the inelastic end stops (:mod:`mechanics`);
@@ -30,11 +31,12 @@ from numba import njit
 from jetpipe_ros.model.chamber import chamber_volumes
 from jetpipe_ros.model.flow import GAMMA_AIR, P_ATM
 from jetpipe_ros.model.valve import U_EQ_MAX, U_EQ_MIN
-from jetpipe_ros.plant.chambers import exchange_heat, isentropic_energy, leak_mass
+from jetpipe_ros.plant.chambers import (exchange_heat, gap_leak_mass, isentropic_energy,
+                                        leak_mass)
 from jetpipe_ros.plant.constants import (DRAWN, E1, E2, FRICTION, HEAD, LAG, M1, M2, N_PLAY, P1,
-                                         N_SEAL, P2, PLAY, SEAL, SEAL_D, SEAL_N, SENSOR1,
-                                         SENSOR2, STEP, STUCK, SUPPLY, UCMD, UEQ, VALVE, V, Y,
-                                         Z, PlantConstants)
+                                         N_SEAL, P2, PLAY, REGULATOR, SEAL, SEAL_D, SEAL_N,
+                                         SENSOR1, SENSOR2, STEP, STUCK, SUPPLY, UCMD, UEQ, VALVE,
+                                         V, Y, Z, PlantConstants)
 from jetpipe_ros.plant.linear import second_order_step
 from jetpipe_ros.plant.mechanics import bristles, directional_levels, stick_slip
 from jetpipe_ros.plant.seal import seal_force, seal_substep
@@ -69,6 +71,18 @@ def _valve(c: PlantConstants, x: np.ndarray, xv: np.ndarray, tmp: np.ndarray,
     if c.play_thresholds.shape[0]:
         u_f = weighted_plays(x[PLAY:PLAY + N_PLAY], c.play_thresholds, c.play_weights, u_f)
     return min(max(c.valve_gain * u_f + c.null_offset, U_EQ_MIN), U_EQ_MAX)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _supply(c: PlantConstants, x: np.ndarray, regulator_decay: float, hose_decay: float
+            ) -> None:
+    """Advance the regulator and the hose one sub-step (valve docstring), the flow the valve
+    draws from the previous sub-step, each part exact with the other held."""
+    hose = c.hose_conductance * (x[REGULATOR] - x[SUPPLY])
+    outlet = c.supply_set - c.supply_droop * hose - c.supply_droop_2 * hose * abs(hose)
+    x[REGULATOR] = outlet + (x[REGULATOR] - outlet) * regulator_decay
+    line = x[REGULATOR] - x[DRAWN] / c.hose_conductance
+    x[SUPPLY] = line + (x[SUPPLY] - line) * hose_decay
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -108,10 +122,12 @@ def _flows(c: PlantConstants, x: np.ndarray, u_eq: float, vol1: float, vol2: flo
         x[E2] += h * cp * q2 * (c.t_supply if q2 > 0.0 else t2)
     # Pressure per kg moved at the upstream temperature: r T / V, or gamma r T / V adiabatic.
     kappa = GAMMA_AIR * c.r_gas if c.thermal else c.r_gas
-    if c.leak_cross > 0.0:
+    if c.leak_cross > 0.0 or c.gap_width > 0.0:
         t_up = t1 if p1 > p2 else t2
-        dm = leak_mass(c.leak_cross, c.leak_b, p1, p2, t1, t2,
-                       kappa * t_up * (1.0 / vol1 + 1.0 / vol2), h)
+        stiffness = kappa * t_up * (1.0 / vol1 + 1.0 / vol2)
+        dm = leak_mass(c.leak_cross, c.leak_b, p1, p2, t1, t2, stiffness, h) + \
+            gap_leak_mass(c.gap_width, c.gap_height, c.gap_length, c.gap_loss, p1, p2,
+                          c.r_gas * t_up, stiffness, h)
         x[M1] -= dm
         x[M2] += dm
         if c.thermal:
@@ -223,7 +239,8 @@ def advance(c: PlantConstants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
     tmp = np.empty(nv)
     points = np.empty(2 * N_SEAL)
     head = int(x[HEAD])
-    supply_decay = math.exp(-h / c.supply_tau)
+    regulator_decay = math.exp(-h / c.supply_tau)
+    hose_decay = math.exp(-h * c.r_gas * c.t_wall * c.hose_conductance / c.hose_volume)
     for k in range(u.shape[0]):
         u_k = min(max(u[k], -c.u_limit), c.u_limit)
         x[UCMD] = u_k
@@ -235,8 +252,8 @@ def advance(c: PlantConstants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
             p2_held = x[P2]
             y_held = x[Y]
             vol1, vol2 = chamber_volumes(x[Y], c.area, c.v01, c.v02)
-            target = c.supply_set - c.supply_droop * x[DRAWN]
-            x[SUPPLY] = target + (x[SUPPLY] - target) * supply_decay
+            if c.supply_droops:
+                _supply(c, x, regulator_decay, hose_decay)
             if not c.regulated:
                 # Heun: the flows at the start and at the Euler prediction, averaged.
                 m1, m2, e1, e2 = x[M1], x[M2], x[E1], x[E2]

@@ -56,7 +56,7 @@ class Plant:
         x[s.STUCK] = 1.0
         # The seal relaxed: one reversal point, here, without friction.
         x[s.SEAL_N], x[s.SEAL_D], x[s.SEAL] = 1.0, 1.0, x[s.Y]
-        x[s.SUPPLY] = c.supply_set
+        x[s.SUPPLY] = x[s.REGULATOR] = c.supply_set
         self.state = x
         self._set_pressures(p["chamber.initial_pressure_1"], p["chamber.initial_pressure_2"],
                             c.t_wall, c.t_wall)

@@ -38,6 +38,14 @@ EFFECT_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
            "atmosphere", "m^3/(s Pa)", 0.0, 1e-8),
         _p("critical_ratio", 0.35, "Critical pressure ratio b", "", 0.05, 0.6),
     ),
+    "seal_gap_leak": (
+        _p("width", 3e-3, "Width w of the gap across the piston (a scratched or worn seal)",
+           "m", 0.0, 0.3),
+        _p("height", 2e-5, "Height delta of the gap", "m", 1e-7, 1e-3),
+        _p("length", 1e-3, "Length L of the gap along the flow", "m", 1e-5, 0.05),
+        _p("loss_coefficient", 1.5, "Entrance and exit loss coefficient zeta of the gap, in "
+           "dynamic heads", "", 0.0, 10.0),
+    ),
     "weighted_play_hysteresis": tuple(
         spec for i, (r, w) in enumerate(((0.05, 0.5), (0.2, 0.3), (0.45, 0.2)), 1) for spec in (
             _p(f"threshold_{i}", r, f"Threshold r_{i} of play {i}", "V", 0.0, 2.0),
@@ -77,8 +85,15 @@ EFFECT_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
     ),
     "supply_droop": (
         _p("set_pressure", 8e5, "Regulator set pressure p_set (absolute)", "Pa", 2e5, 1e6),
-        _p("droop", 2e7, "Supply pressure lost per flow drawn R", "Pa s/kg", 0.0, 1e8),
-        _p("time_constant", 0.01, "Supply line time constant tau_r", "s", 1e-4, 1.0),
+        _p("droop", 1e7, "Regulator outlet pressure lost per flow through it R", "Pa s/kg",
+           0.0, 1e8),
+        _p("droop_quadratic", 4e9, "Regulator outlet pressure lost per flow squared S",
+           "Pa s^2/kg^2", 0.0, 1e12),
+        _p("time_constant", 0.01, "Regulator time constant tau_r", "s", 1e-4, 1.0),
+        _p("hose_conductance", 2e-7, "Hose mass flow per pressure drop G_h", "kg/(s Pa)",
+           1e-9, 1e-3),
+        _p("hose_volume", 1e-4, "Hose volume V_h between regulator and valve", "m^3",
+           1e-7, 0.1),
     ),
     "extra_mass": (
         _p("mass", 1.5, "Moving mass beyond mechanics.mass (negative: lighter)", "kg",

@@ -25,13 +25,18 @@ Signal path per sub-step of length h (the pinned parts from :mod:`jetpipe_ros.mo
   the centre). The model's candidate spreads equal weights evenly around one half-width.
 - **Null offset** (``null_offset``, on no list): u_eq = clip(g u_h + u_0) [V], a torque motor
   whose magnetic null is off by u_0: at 0 V each chamber settles at the null of Eq. 8 at +-u_0.
-- **Supply with regulator droop** (``supply_droop``): the regulator holds p_set [Pa] less a droop
-  R [Pa s/kg] times the flow the valve draws to fill the chambers Q = sum max(q_i, 0) [kg/s],
-  through a first-order line: tau_r dp_s/dt = p_set - R Q - p_s (Q from the previous sub-step).
-  The flow map follows the supply by similarity in absolute pressure (choked jet flow and
-  receiver recovery both scale with p_s): q(u, p; p_s) = s q_8(u, p / s) with s = p_s / 10 bar
-  and no outflow at or below atmospheric pressure. The model's candidate is a constant supply
-  mapped affinely over [p_atm, p_s].
+- **Supply through a drooping regulator and a hose** (``supply_droop``): the regulator's outlet
+  p_r [Pa] follows its droop curve, set pressure p_set less R Q_h + S Q_h |Q_h| for the flow
+  Q_h [kg/s] it delivers (R [Pa s/kg], S [Pa s^2/kg^2]: the droop steepens with flow), with
+  its diaphragm's lag, tau_r dp_r/dt = p_set - R Q_h - S Q_h |Q_h| - p_r; the hose, of
+  conductance G_h [kg/(s Pa)] and volume V_h [m^3], carries Q_h = G_h (p_r - p_s) to the
+  valve, which draws Q = sum max(q_i, 0) [kg/s] to fill the chambers (from the previous
+  sub-step): V_h dp_s/dt = r T (Q_h - Q). Each of the two states advances exactly over the
+  sub-step with the other held. The flow map follows the supply by similarity in absolute
+  pressure (choked jet flow and receiver recovery both scale with p_s): q(u, p; p_s) =
+  s q_8(u, p / s) with s = p_s / 10 bar and no outflow at or below atmospheric pressure. The
+  model's candidates: a constant supply, or one line (a linear conductance and a volume) fed
+  from a constant set pressure, the flow map mapped affinely over [p_atm, p_s].
 - **Pressure-dependent valve gain** (``pressure_dependent_gain``, on no list): the flow into a
   chamber at pressure p is scaled by 1 + k (p - p_mid) / p_s with p_mid = (p_s + p_atm) / 2
   (k [-]): the jet's recovery depends on the back pressure more than Eq. 8's fit says. The nulls
