@@ -21,7 +21,7 @@ from jetpipe_ros.plant.valve import delayed_chain
 LAG = 20  #: extra valve lag: output [V], its rate [V/s]
 SENSOR1 = 22  #: chamber 1 transducer: reading [Pa], its rate [Pa/s]
 SENSOR2 = 24  #: chamber 2 transducer
-POSITION = 26  #: position transducer: its second stage's reading [m], its first stage's [m]
+POSITION = 26  #: position transducer: reading [m], its rate [m/s]
 PLAY = 28  #: the N_PLAY play operators' outputs [V]
 N_PLAY = 3
 SEAL = PLAY + N_PLAY  #: the measured seal's N_SEAL reversal points: x_r [m], F_r [N] each
@@ -99,7 +99,8 @@ class PlantConstants(NamedTuple):
     sensor_offset_1: float  #: [Pa]
     sensor_offset_2: float  #: [Pa]
     position_filter: bool  #: two-stage position transducer on
-    position_decay: float  #: exp(-h / tau) of each stage over a sub-step
+    position_a: np.ndarray  #: its discretisation over a sub-step (critically damped lag)
+    position_b: np.ndarray
     sigma_p: float  #: pressure noise [Pa]
     sigma_y: float  #: position noise [m]
 
@@ -137,6 +138,10 @@ def build_constants(spec: PlantSpec) -> PlantConstants:
     cushion = e.get("end_stop_cushion", {"length": 0.0, "stiffness": 0.0, "damping": 0.0})
     spring = e.get("load_spring", {"stiffness": 0.0, "free_position": 0.0})
     position = e.get("position_filter")
+    # Two equal first-order stages in series: the critically damped lag with w = 1 / tau.
+    position_a, position_b = second_order_lag(
+        1.0 / (2.0 * math.pi * position["time_constant"]), 1.0, h) if position \
+        else (np.zeros((2, 2)), np.zeros(2))
     sensor = e.get("sensor_second_order")
     sensor_a, sensor_b = second_order_lag(sensor["natural_frequency"], sensor["damping_ratio"],
                                           h) if sensor else (np.zeros((2, 2)), np.zeros(2))
@@ -185,7 +190,7 @@ def build_constants(spec: PlantSpec) -> PlantConstants:
         sensor_offset_1=sensor["offset_1"] if sensor else 0.0,
         sensor_offset_2=sensor["offset_2"] if sensor else 0.0,
         position_filter=position is not None,
-        position_decay=math.exp(-h / position["time_constant"]) if position else 0.0,
+        position_a=position_a, position_b=position_b,
         sigma_p=p["sensors.pressure_sigma"] if noise else 0.0,
         sigma_y=p["sensors.position_sigma"] if noise else 0.0,
     )

@@ -34,13 +34,13 @@ from jetpipe_ros.model.valve import U_EQ_MAX, U_EQ_MIN
 from jetpipe_ros.plant.chambers import (exchange_heat, gap_leak_mass, isentropic_energy,
                                         leak_mass)
 from jetpipe_ros.plant.constants import (DRAWN, E1, E2, FRICTION, HEAD, LAG, M1, M2, N_PLAY, P1,
-                                         N_SEAL, P2, PLAY, REGULATOR, SEAL, SEAL_D, SEAL_N,
-                                         SENSOR1, SENSOR2, STEP, STUCK, SUPPLY, UCMD, UEQ, VALVE,
-                                         V, Y, Z, PlantConstants)
+                                         N_SEAL, P2, PLAY, POSITION, REGULATOR, SEAL, SEAL_D,
+                                         SEAL_N, SENSOR1, SENSOR2, STEP, STUCK, SUPPLY, UCMD, UEQ,
+                                         VALVE, V, Y, Z, PlantConstants)
 from jetpipe_ros.plant.linear import second_order_step
 from jetpipe_ros.plant.mechanics import bristles, directional_levels, stick_slip
 from jetpipe_ros.plant.seal import seal_force, seal_substep
-from jetpipe_ros.plant.sensors import filter_position, measure
+from jetpipe_ros.plant.sensors import measure
 from jetpipe_ros.plant.valve import valve_inflow, weighted_plays
 
 
@@ -289,7 +289,8 @@ def advance(c: PlantConstants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
                 second_order_step(c.sensor_a, c.sensor_b, x, SENSOR1, p1_held)
                 second_order_step(c.sensor_a, c.sensor_b, x, SENSOR2, p2_held)
             if c.position_filter:
-                filter_position(x, 0.5 * (y_held + x[Y]), c.position_decay)
+                second_order_step(c.position_a, c.position_b, x, POSITION,
+                                  0.5 * (y_held + x[Y]))
         x[STEP] += 1.0
         measure(c, x, noise[k], out[k])
     x[VALVE:VALVE + nv] = xv

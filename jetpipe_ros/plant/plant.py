@@ -62,7 +62,7 @@ class Plant:
                             c.t_wall, c.t_wall)
         x[s.SENSOR1] = x[s.P1]
         x[s.SENSOR2] = x[s.P2]
-        x[s.POSITION:s.POSITION + 2] = x[s.Y]
+        x[s.POSITION] = x[s.Y]
         self.ring = np.zeros(c.delay_whole + 2)
 
     def _set_pressures(self, p1: float, p2: float, t1: float, t2: float) -> None:

@@ -15,8 +15,9 @@
 
       tau s_a' = y - s_a,   tau s_b' = s_a - s_b,   y_meas = s_b
 
-  with tau [s] (its lag at low frequency is 2 tau). Each stage is exact for its input held over
-  the sub-step at its mean (the position's, the first stage's at the sub-step's ends). The model has no position sensor
+  with tau [s] (its lag at low frequency is 2 tau): 1 / (tau s + 1)^2, the critically damped
+  second-order lag of natural frequency 1 / tau, discretised exactly as the pressure
+  transducers are, the position held over the sub-step at its mean. The model has no position sensor
   dynamics at all.
 - **Noise**: as the model's, Gaussian, position sigma 15 um and pressure sigma 500 Pa by
   default (``sensors.*`` of the model parameters), from ``numpy.random.default_rng(seed)``
@@ -33,16 +34,6 @@ from jetpipe_ros.model.kernel import (OUT_FORCE, OUT_FRICTION, OUT_P1, OUT_P1_ME
                                      OUT_Y_MEAS)
 from jetpipe_ros.plant.constants import (FRICTION, P1, P2, POSITION, SENSOR1, SENSOR2, STEP,
                                          UCMD, UEQ, V, Y, PlantConstants)
-
-
-@njit(cache=True, error_model="numpy")
-def filter_position(x: np.ndarray, y: float, decay: float) -> None:
-    """Advance the position transducer's two stages one sub-step on the position ``y`` [m]
-    (its mean over the sub-step); ``decay`` = exp(-h / tau)."""
-    start = x[POSITION + 1]
-    x[POSITION + 1] = y + (start - y) * decay
-    mean = 0.5 * (start + x[POSITION + 1])
-    x[POSITION] = mean + (x[POSITION] - mean) * decay
 
 
 @njit(cache=True, error_model="numpy")
