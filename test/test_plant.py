@@ -533,6 +533,9 @@ def test_load_spring_pulls_the_piston_back_until_friction_holds_it():
     spring = k_s * (out[k.OUT_Y] - y_s)
     assert abs(out[k.OUT_V]) < 1e-6
     assert abs(f_c) <= spring <= abs(f_s) + f_v * abs(out[k.OUT_V]) + 1e-6
+    # crept onto the breakaway boundary: the spring's force is the breakaway force there (a
+    # stiffness 10 % off would leave it 10 % off)
+    assert spring == pytest.approx(abs(f_s), rel=1e-3)
 
 
 def test_piston_accelerates_as_the_ode_with_its_mass():
