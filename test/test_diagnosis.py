@@ -219,6 +219,24 @@ def test_the_separating_experiment_is_where_two_models_differ_most():
         shutil.rmtree(root)
 
 
+def test_a_separating_experiment_is_judged_on_the_sensors_the_bench_has(tmp_path):
+    """A bench without a chamber-2 sensor: the experiments it could record are compared on the
+    position and p1 only (a missing sensor has no noise to divide by: 1e13 x the noise)."""
+    from jetpipe_ros.diagnosis.separation import separating_experiment
+    from jetpipe_ros.plant.logger import log
+
+    make_dataset(tmp_path / "data", ModelParams())
+    log("one_pressure", tmp_path / "data", 1)
+    prepared = prepare(read_dataset(tmp_path / "data"))
+    assert prepared.sensors == ("y", "p1")
+    a = ModelParams().with_effect("valve_lag", corner_frequency=40.0)
+    b = ModelParams().with_effect("valve_delay", delay=0.004)
+    sep = separating_experiment(a, b, prepared)
+    # A 40 Hz lag against a 4 ms delay: a few to a few hundred times the noise, no more.
+    assert all(0.0 <= m["difference_over_noise"] < 1e3 for m in sep["menu"])
+    assert sep["difference_over_noise"] > 3.0
+
+
 def test_split_fallbacks_are_stated(tmp_path):
     make_dataset(tmp_path / "data", ModelParams(), roles=False)
     prep = prepare(read_dataset(tmp_path / "data"))

@@ -114,8 +114,9 @@ def presliding_experiment(params: ModelParams, dt: float) -> ExperimentSpec | No
 
 def separating_experiment(a: ModelParams, b: ModelParams, prepared: Prepared) -> dict | None:
     """The experiment where two fitted models differ most, relative to sensor noise (the RMS
-    over signals of (a - b) / noise; see the module text for the menu). Experiments not in the
-    dataset come with ``campaign_entry``, their mapping for a campaign YAML."""
+    over signals of (a - b) / noise; see the module text for the menu), judged on the signals
+    the dataset measures. Experiments not in the dataset come with ``campaign_entry``, their
+    mapping for a campaign YAML."""
     noise = {s: max(prepared.noise[s], 1e-12) for s in SIGNALS}
     menu = []
     for rec in prepared.records:
@@ -136,7 +137,11 @@ def separating_experiment(a: ModelParams, b: ModelParams, prepared: Prepared) ->
         changes = {"mechanics.locked": exp.locked, "sensors.noise": False}
         ta = simulate(a.at_sample_time(prepared.dt).with_values(changes), u, exp.load_force)
         tb = simulate(b.at_sample_time(prepared.dt).with_values(changes), u, exp.load_force)
-        signals = ("p1", "p2") if exp.locked else SIGNALS
+        # Only the sensors this bench has: a signal it cannot measure separates nothing.
+        signals = [s for s in (("p1", "p2") if exp.locked else SIGNALS)
+                   if s in prepared.sensors]
+        if not signals:
+            continue
         d = np.mean([np.mean(((getattr(ta, f"{s}_meas") - getattr(tb, f"{s}_meas")) /
                               noise[s]) ** 2) for s in signals])
         menu.append({"experiment": exp.name, "piston": "locked" if exp.locked else "free",
