@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from jetpipe_ros.cli import main
-from jetpipe_ros.dataset import DatasetError, read_records
+from jetpipe_ros.dataset import DatasetError, read_dataset, read_records
 from jetpipe_ros.identify.seal import (fit_form, measured_presliding, planes_of, prepare,
                                        scores)
 from jetpipe_ros.model import load_params
@@ -201,3 +201,58 @@ def test_a_rod_that_never_moves_is_one_line_naming_the_record(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "rig.csv" in err and "moving" in err
     assert not out.exists()
+
+
+def test_the_actuators_own_friction_tests_feed_the_friction_command(tmp_path, capsys):
+    """A dataset of the actuator's own friction tests (regulated pressures, piston released,
+    both pressures measured) instead of a rig folder: friction from Eq. 19, the static form
+    selected (one stroke each, no reversal: the dynamic forms cannot be judged), the held-out
+    part of each slide predicted within 3 % of its range, the parameters loadable; each test's
+    own static fit (started from the data's levels) recovers Eq. 18 at its pressures: the
+    Coulomb level within 5 %, F_S / F_C within 5 %, the viscous coefficient within 5 %. (A
+    test at 1 -> 9.92 bar is left out: its friction is 1.6 % of the pneumatic force and its
+    slide too short to separate the terms, as the paper's own procedure would leave it.)"""
+    from jetpipe_ros.identify.experiments import FRICTION, of_kind, recordings
+    from jetpipe_ros.identify.seal import prepare_test
+    from jetpipe_ros.identify import synthetic as syn
+    from jetpipe_ros.model import ModelParams
+    from jetpipe_ros.model.friction import plane
+
+    truth = ModelParams().with_values({"sensors.noise": True, "sensors.seed": 5})
+    tests = [syn.friction_test(p1, p2) for p1, p2 in
+             ((1, 6.93), (4.23, 8.89), (4.015, 1), (8.98, 1), (10.205, 4.195))]
+    syn.record(truth, tests, tmp_path / "data")
+    out = tmp_path / "out"
+    assert main(["friction", str(tmp_path / "data"), "--out", str(out)]) == 0
+    doc = json.loads((out / "friction.json").read_text())
+    seal = doc["seals"]["data"]
+    assert seal["selected"] == "static"
+    static = [r["scores"]["static"] for r in seal["records"].values()]
+    assert np.median([s["nrmse"] for s in static]) < 0.03
+    params = load_params(out / "friction.yaml")
+    assert not params["effects.friction_dynamics.enabled"]
+    trace = simulate(params, np.concatenate([np.full(400, 0.4), np.full(400, -0.4)]))
+    assert np.all(np.isfinite(trace.friction)) and np.ptp(trace.y) > 1e-3
+    for rec in of_kind(recordings(read_dataset(tmp_path / "data")), FRICTION):
+        prep = prepare_test(rec, truth)
+        fit = fit_form("static", [prep], rec.name)
+        phase, direction = ("exit", "exit") if np.mean(prep.v[prep.train]) > 0 else \
+            ("entry", "entry")
+        at = (np.mean(prep.p1) * 1e-5, np.mean(prep.p2) * 1e-5)
+        coulomb = plane(truth[f"friction.{phase}.coulomb"], *at)
+        ratio = plane(truth[f"friction.{phase}.breakaway"], *at) / coulomb
+        assert fit.values[f"{direction}.level"] == pytest.approx(abs(coulomb), rel=0.05), rec.name
+        assert fit.values[f"{direction}.ratio"] == pytest.approx(ratio, rel=0.05)
+        assert fit.values[f"{direction}.viscous"] == pytest.approx(
+            plane(truth[f"friction.{phase}.viscous"], *at), rel=0.05)
+
+
+def test_a_dataset_without_friction_tests_is_one_line(tmp_path, capsys):
+    from jetpipe_ros.identify import synthetic as syn
+    from jetpipe_ros.model import ModelParams
+
+    syn.record(ModelParams(), [syn.charge_discharge(1.15, 0.5, 0.5)], tmp_path / "data")
+    assert main(["friction", str(tmp_path / "data"), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "dataset.yaml" in err and "friction test" in err
+    assert not (tmp_path / "out").exists()

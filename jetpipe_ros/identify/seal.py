@@ -15,13 +15,21 @@ from a few physically bounded parameters per direction of motion (exit: v > 0, e
 - ``lugre``: a bristle stiffness sigma_0 (no damping); ``maxwell_slip``: the pre-sliding
   displacement delta and the spread of three elements.
 
+The actuator's own friction tests (a dataset's free-piston tests with the chamber pressures held
+by regulators and the piston released progressively, Sec. 4.2, both pressures measured) are
+records too (:func:`prepare_test`): their friction is Newton's law, Eq. 19, as
+``jetpipe identify`` computes it (:func:`~jetpipe_ros.identify.friction.friction_force`), over
+the slide from breakaway to the far end stop, whose first ``split`` is fitted and the rest
+judged. Such a test moves one way; the other direction's parameters come from the other tests.
+
 ``coulomb_viscous`` (r = 1) and ``static`` (Eq. 18) have no state. Records of one seal (field
 ``seal``) are fitted each on its first part (``split``), as the paper fits each test, and
 combined over pressure into the seal's planes (:func:`combine`, then refined by a joint fit of
 the seal's records); a ``role: holdout`` record is
 not fitted and is predicted by the seal's planes. Every record is judged on its held-out part,
 on moving samples (speed above :data:`MIN_SPEED`, the velocity's window clear of the logger's
-gaps). The form selected is the one with the lowest median held-out NRMSE.
+gaps). The form selected is the one with the lowest median held-out NRMSE, among the static
+forms when no record reverses (:func:`select`).
 """
 
 from __future__ import annotations
@@ -31,17 +39,21 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import optimize
+from scipy import optimize, signal
 
 from jetpipe_ros.dataset import DatasetError
 from jetpipe_ros.dataset.friction_rig import RigRecord
 from jetpipe_ros.identify.differentiate import derivative, window_samples
+from jetpipe_ros.identify.experiments import Recording
+from jetpipe_ros.identify.friction import WINDOW as TEST_WINDOW
+from jetpipe_ros.identify.friction import friction_force
 from jetpipe_ros.model.flow import P_ATM
 from jetpipe_ros.model.friction import (LUGRE, MAXWELL_SLIP, STATIC, element_slips,
                                         prescribed_friction, presliding_displacement)
 from jetpipe_ros.model.params import ModelParams
 
 FORMS = ("coulomb_viscous", "static", "lugre", "maxwell_slip")
+STATIC_FORMS = FORMS[:2]
 #: Window of the velocity's zero-phase derivative [s] (about 0.1 mm of travel per sample at
 #: the rigs' speeds, and wide enough to average a 100 Hz logger's noise).
 WINDOW = 0.1
@@ -57,7 +69,7 @@ SEAL_NFEV = 40
 
 #: Per direction: level a [N], slope b [N/bar], ratio r = F_S/F_C, v_s [m/s], F_v [N s/m].
 _PER_DIRECTION = (("level", -1e3, 1e4), ("slope", -1e3, 1e3), ("ratio", 0.2, 2.0),
-                  ("stribeck_velocity", 1e-4, 0.01), ("viscous", 0.0, 1e4))
+                  ("stribeck_velocity", 1e-4, 0.05), ("viscous", 0.0, 1e4))
 #: Dynamic parameters, fitted as log10: sigma_0 [N/m]; delta [m], spread [-].
 _DYNAMIC = {"lugre": (("bristle_stiffness", 2.0, 8.0),),
             "maxwell_slip": (("presliding_displacement", -5.0, math.log10(5e-3)),
@@ -65,16 +77,54 @@ _DYNAMIC = {"lugre": (("bristle_stiffness", 2.0, 8.0),),
 
 
 @dataclass
+class ActuatorTest:
+    """A friction test of the actuator's own dataset, described as a rig record is."""
+
+    name: str  #: experiment name
+    file: str  #: CSV file name
+    seal: str  #: the actuator (records of one seal are fitted together)
+    role: str | None  #: train | holdout | None, from dataset.yaml
+    t: np.ndarray  #: time [s]
+    x: np.ndarray  #: piston position [m]
+    valid: np.ndarray  #: bool: a measured row (False where the logger lost it)
+
+    @property
+    def dt(self) -> float:
+        """Sample time [s]."""
+        return float(self.t[1] - self.t[0])
+
+
+@dataclass
 class Prepared:
     """A record with what the fit needs: velocity, pressures, train and test masks."""
 
-    record: RigRecord
+    record: RigRecord | ActuatorTest
     v: np.ndarray  #: velocity [m/s]
-    p1: np.ndarray  #: chamber pressure [Pa]
-    p2: np.ndarray  #: other side: atmosphere [Pa]
+    p1: np.ndarray  #: chamber 1 pressure, or the rig's chamber [Pa]
+    p2: np.ndarray  #: chamber 2 pressure, or the rig's other side: atmosphere [Pa]
     friction: np.ndarray  #: measured friction [N]
     train: np.ndarray  #: bool: fitted samples
     test: np.ndarray  #: bool: judged samples (held out, moving)
+
+    @property
+    def pressure(self) -> float:
+        """The pressure the seal's level follows [Pa absolute]: the mean of p1 + p2 - p_atm
+        over the fitted samples (the rig's chamber pressure when the other side is at
+        atmosphere), over all samples if none is fitted."""
+        m = self.train if self.train.any() else np.ones(self.p1.size, dtype=bool)
+        return float(np.mean(self.p1[m] + self.p2[m])) - P_ATM
+
+    def describe_pressure(self) -> str:
+        """The record's pressures in words: the rig's chamber in bar gauge, or both of an
+        actuator's chambers in bar absolute."""
+        if isinstance(self.record, RigRecord):
+            return f"{(self.pressure - P_ATM) * 1e-5:.1f} bar gauge"
+        return f"p1 {np.mean(self.p1) * 1e-5:.2f}, p2 {np.mean(self.p2) * 1e-5:.2f} bar"
+
+    def moves(self, direction: str) -> bool:
+        """True when the fitted samples move in ``direction`` (exit: v > 0, entry: v < 0)."""
+        sign = 1.0 if direction == "exit" else -1.0
+        return bool(np.any(self.train & (sign * self.v > 0)))
 
 
 @dataclass
@@ -143,6 +193,30 @@ def prepare(record: RigRecord, split: float = 0.5) -> Prepared:
     first = np.arange(record.t.size) < cut
     return Prepared(record=record, v=v, p1=record.p, p2=np.full(record.t.size, P_ATM),
                     friction=record.friction, train=moving & first, test=moving & ~first)
+
+
+def prepare_test(rec: Recording, params: ModelParams, split: float = 0.5) -> Prepared:
+    """A friction test of the actuator's own dataset as a record: friction from Eq. 19
+    (:func:`~jetpipe_ros.identify.friction.friction_force`, with the piston area and moving
+    mass of ``params``), pressures smoothed over the same window; train = the first ``split``
+    of the slide (none for a ``role: holdout`` test), test = the rest. DatasetError naming the
+    experiment when it does not slide."""
+    exp = rec.experiment
+    v, force, sliding = friction_force(rec, params)
+    slide = np.flatnonzero(sliding & (np.abs(v) > MIN_SPEED))
+    if slide.size < 20:
+        raise DatasetError(f"{rec.entry.file}: the piston slides for {slide.size} samples "
+                           f"faster than {MIN_SPEED * 1e3:g} mm/s; a friction test needs 20")
+    n = window_samples(TEST_WINDOW, exp.dt)
+    p1, p2 = (signal.savgol_filter(x, n, 3, mode="interp") for x in (exp.p1, exp.p2))
+    cut = slide[0] + int(split * slide.size) if rec.entry.role != "holdout" else 0
+    first = np.arange(exp.t.size) < cut
+    moving = np.zeros(exp.t.size, dtype=bool)
+    moving[slide] = True
+    record = ActuatorTest(name=rec.name, file=rec.entry.file, seal="", role=rec.entry.role,
+                          t=exp.t, x=exp.y, valid=np.ones(exp.t.size, dtype=bool))
+    return Prepared(record=record, v=v, p1=p1, p2=p2, friction=force,
+                    train=moving & first, test=moving & ~first)
 
 
 def _names(form: str) -> list[str]:
@@ -215,18 +289,22 @@ def fit_form(form: str, preps: list[Prepared], what: str, attempts: int = 3,
     record or the seal)."""
     lo, hi = _bounds(form)
     free = np.ones(lo.size, dtype=bool)
-    pressures = [float(np.mean(p.p1[p.train])) * 1e-5 for p in preps if p.train.any()]
+    pressures = [p.pressure * 1e-5 for p in preps if p.train.any()]
     if not pressures:
         raise DatasetError(f"{what}: no moving training samples (role: holdout, or the rod "
                            f"never moves faster than {MIN_SPEED * 1e3:g} mm/s)")
     names = _names(form)
+    trained = [p for p in preps if p.train.any()]
     for i, name in enumerate(names):
         fixed_slope = name.endswith(".slope") and \
             max(pressures) - min(pressures) < MIN_PRESSURE_SPAN
-        if fixed_slope or (form == "coulomb_viscous" and name.endswith(
+        # A direction no training sample moves in (an actuator's test slides one way) has
+        # nothing to fit: its parameters keep their start.
+        unseen = any(name.startswith(f"{d}.") and not any(p.moves(d) for p in trained)
+                     for d in DIRECTIONS)
+        if fixed_slope or unseen or (form == "coulomb_viscous" and name.endswith(
                 (".ratio", ".stribeck_velocity"))):
             free[i] = False
-    trained = [p for p in preps if p.train.any()]
     error = "no attempt"
     for attempt in range(attempts):
         if start is not None and attempt == 0:
@@ -305,17 +383,23 @@ def measured_presliding(prep: Prepared, fraction: float = 0.9) -> np.ndarray:
     return np.array(out)
 
 
-def combine(form: str, fits: list[FormFit], pressures: list[float]) -> FormFit:
-    """One seal's fit over pressure from its records' fits at ``pressures`` [Pa] (the paper's
-    route from tests to planes, Sec. 4.2.3): per direction a line of the level over the
-    pressure (its slope 0 when the pressures span less than :data:`MIN_PRESSURE_SPAN`), the
-    other parameters' medians."""
-    gauge = (np.asarray(pressures) - P_ATM) * 1e-5
+def combine(form: str, fits: list[FormFit], preps: list[Prepared]) -> FormFit:
+    """One seal's fit over pressure from its records' fits (``fits[i]`` of ``preps[i]``, at
+    its :attr:`Prepared.pressure`: the paper's route from tests to planes, Sec. 4.2.3): per
+    direction a line of the level over the pressure (its slope 0 when the pressures span less
+    than :data:`MIN_PRESSURE_SPAN`) through the records that move that way, the other
+    parameters' medians over them."""
     values = {}
     for name in fits[0].values:
-        values[name] = float(np.median([f.values[name] for f in fits]))
+        direction = name.split(".")[0]
+        judged = [f for f, p in zip(fits, preps) if direction not in DIRECTIONS
+                  or p.moves(direction)] or fits
+        values[name] = float(np.median([f.values[name] for f in judged]))
     for direction in DIRECTIONS:
-        levels = np.array([f.values[f"{direction}.level"] for f in fits])
+        moving = [(f, p) for f, p in zip(fits, preps) if p.moves(direction)] or \
+            list(zip(fits, preps))
+        gauge = np.array([(p.pressure - P_ATM) * 1e-5 for _, p in moving])
+        levels = np.array([f.values[f"{direction}.level"] for f, _ in moving])
         if np.ptp(gauge) >= MIN_PRESSURE_SPAN:
             slope, level = np.polyfit(gauge, levels, 1)
         else:
@@ -340,25 +424,24 @@ class SealResult:
         return self.per_record[form].get(prep.record.name, self.seal_fits[form])
 
 
-def identify_seal(seal: str, records: list[RigRecord], split: float = 0.5) -> SealResult:
-    """Fit every form to each training record of one seal (the first ``split`` of it), combine
-    them over pressure (:func:`combine`), judge each record's held-out samples with its own
-    fit (a ``role: holdout`` record with the seal's), and select the form with the lowest
-    median held-out NRMSE."""
-    preps = [prepare(r, split) for r in records]
+def identify_seal(seal: str, preps: list[Prepared], split: float = 0.5) -> SealResult:
+    """Fit every form to each training record of one seal (prepared with its first ``split``
+    fitted), combine them over pressure (:func:`combine`), judge each record's held-out
+    samples with its own fit (a ``role: holdout`` record with the seal's), and select a form
+    (:func:`select`)."""
+    files = ", ".join(p.record.file for p in preps)
     trained = [p for p in preps if p.train.any()]
     if not trained:
-        raise DatasetError(f"{seal}: no moving training samples in "
-                           f"{', '.join(r.file for r in records)} (all role: holdout, or the "
-                           f"rod never moves faster than {MIN_SPEED * 1e3:g} mm/s)")
+        raise DatasetError(f"{seal}: no moving training samples in {files} (all role: "
+                           f"holdout, or the rod never moves faster than "
+                           f"{MIN_SPEED * 1e3:g} mm/s)")
     per_record: dict[str, dict[str, FormFit]] = {}
     seal_fits: dict[str, FormFit] = {}
     judged: dict[str, dict[str, dict[str, float]]] = {}
     for form in FORMS:
         own = {p.record.name: fit_form(form, [p], p.record.file) for p in trained}
         per_record[form] = own
-        seal_fits[form] = combine(form, list(own.values()),
-                                  [float(np.mean(p.p1[p.train])) for p in trained])
+        seal_fits[form] = combine(form, [own[p.record.name] for p in trained], trained)
         if len(trained) > 1:
             # One set of planes for all the seal's pressures, refined from the combination.
             seal_fits[form] = fit_form(form, trained, seal or "seal", start=seal_fits[form],
@@ -370,12 +453,25 @@ def identify_seal(seal: str, records: list[RigRecord], split: float = 0.5) -> Se
                 judged[form][p.record.name] = scores(
                     p.friction[p.test], fit.predict(p)[p.test], p.v[p.test])
     if not judged[FORMS[0]]:
-        raise DatasetError(f"{seal}: no held-out moving samples in "
-                           f"{', '.join(r.file for r in records)} (split {split:g})")
-    selected = min(FORMS, key=lambda form: float(np.median(
-        [s["nrmse"] for s in judged[form].values()])))
+        raise DatasetError(f"{seal}: no held-out moving samples in {files} (split {split:g})")
     return SealResult(seal=seal, preps=preps, per_record=per_record, seal_fits=seal_fits,
-                      scores=judged, selected=selected)
+                      scores=judged, selected=select(judged, preps))
+
+
+def select(judged: dict[str, dict[str, dict[str, float]]], preps: list[Prepared]) -> str:
+    """The form with the lowest median held-out NRMSE over the records; only the static forms
+    when no record reverses its motion (:func:`reverses`): pre-sliding and frictional memory
+    show after a reversal, so without one the dynamic forms' scores measure nothing they add."""
+    forms = FORMS if any(reverses(p) for p in preps) else STATIC_FORMS
+    return min(forms, key=lambda form: float(np.median(
+        [s["nrmse"] for s in judged[form].values()])))
+
+
+def reverses(prep: Prepared) -> bool:
+    """True when the record's moving samples go both ways (a reversal the dynamic forms'
+    pre-sliding can be judged on)."""
+    moving = prep.train | prep.test
+    return bool(np.any(prep.v[moving] > 0) and np.any(prep.v[moving] < 0))
 
 
 def since_reversal(x: np.ndarray, v: np.ndarray) -> np.ndarray:

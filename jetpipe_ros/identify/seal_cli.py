@@ -1,4 +1,5 @@
-"""``jetpipe friction DIR --out OUT``: seal friction from friction-rig records.
+"""``jetpipe friction DIR --out OUT``: seal friction from friction-rig records or from the
+actuator's own friction tests (a dataset).
 
 Every output (``friction.yaml``, ``friction.json``, ``report.html``, ``prediction/*.csv``) is
 written together at the end: all or, on an error, none.
@@ -6,11 +7,14 @@ written together at the end: all or, on an error, none.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 
 def _run(args) -> int:
     from jetpipe_ros import fileio
-    from jetpipe_ros.dataset import DatasetError, read_records
-    from jetpipe_ros.identify.seal import identify_seal
+    from jetpipe_ros.dataset import DatasetError, read_dataset, read_records
+    from jetpipe_ros.identify.experiments import FRICTION, of_kind, recordings
+    from jetpipe_ros.identify.seal import identify_seal, prepare, prepare_test
     from jetpipe_ros.identify.seal_report import (html_report, params_yaml, prediction_csv,
                                                   to_json)
     from jetpipe_ros.model import ModelParams, load_params
@@ -19,12 +23,24 @@ def _run(args) -> int:
     if not 0.05 <= args.split <= 0.95:
         raise DatasetError(f"--split: {args.split:g} must lie in [0.05, 0.95]")
     base = load_params(args.params) if args.params else ModelParams()
-    records = read_records(args.dir)
+    root = Path(args.dir)
     seals: dict[str, list] = {}
-    for rec in records:
-        seals.setdefault(rec.seal, []).append(rec)
-    notes = [n for rec in records for n in rec.notes]
-    results = [identify_seal(seal, recs, args.split) for seal, recs in seals.items()]
+    if not (root / "records.yaml").is_file() and (root / "dataset.yaml").is_file():
+        tests = of_kind(recordings(read_dataset(root)), FRICTION)
+        if not tests:
+            raise DatasetError(f"{root / 'dataset.yaml'}: no friction test (a free piston "
+                               f"with 'regulated: true', released from its end stop: "
+                               f"docs/friction.md)")
+        seals[root.name] = [prepare_test(rec, base, args.split) for rec in tests]
+        notes = [f"{root.name}: {len(tests)} friction tests of the actuator's own dataset, "
+                 f"friction from Newton's law (Eq. 19) with the piston area and mass of "
+                 f"{args.params or 'the nominal model'}"]
+    else:
+        records = read_records(root)
+        for rec in records:
+            seals.setdefault(rec.seal, []).append(prepare(rec, args.split))
+        notes = [n for rec in records for n in rec.notes]
+    results = [identify_seal(seal, preps, args.split) for seal, preps in seals.items()]
     doc = to_json(results, args.split, notes)
     files: dict = {out / "friction.yaml": params_yaml(results[0], base),
                    out / "friction.json": fileio.to_json(doc) + "\n",
@@ -49,14 +65,18 @@ def _run(args) -> int:
 def add_command(subparsers) -> None:
     """``jetpipe friction``: fit and select seal friction models on friction-rig records."""
     cmd = subparsers.add_parser(
-        "friction", help="seal friction from friction-rig records (t,x,p,F)",
+        "friction", help="seal friction from friction-rig records (t,x,p,F) or the "
+                         "actuator's own friction tests",
         description="Fit the model's friction forms (Coulomb + viscous, the static planes, "
                     "LuGre, Maxwell-slip) to friction-rig records (records.yaml + CSVs "
-                    "t,x,p,F) on the first part of each record, judge them on the rest, select "
+                    "t,x,p,F), or to the friction tests of an actuator's dataset (Eq. 19), "
+                    "on the first part of each record, judge them on the rest, select "
                     "the best by held-out NRMSE and write OUT/friction.yaml (loadable by "
                     "jetpipe simulate and actuator_sim), OUT/friction.json, OUT/report.html "
                     "and OUT/prediction/<record>.csv.")
-    cmd.add_argument("dir", help="friction-rig folder (records.yaml + CSVs; docs/friction.md)")
+    cmd.add_argument("dir", help="friction-rig folder (records.yaml + CSVs), or a dataset of "
+                                 "the actuator with friction tests (dataset.yaml; "
+                                 "docs/friction.md)")
     cmd.add_argument("--out", required=True, help="output directory")
     cmd.add_argument("--params", help="parameters the fitted friction is written into (YAML); "
                                       "default: the nominal model")

@@ -43,7 +43,7 @@ def to_json(results: list[SealResult], split: float, notes: list[str]) -> dict[s
             measured = measured_presliding(prep)
             records[prep.record.name] = {
                 "file": prep.record.file, "role": prep.record.role or "train",
-                "mean_pressure_pa": float(np.mean(prep.p1)),
+                "mean_pressure_pa": prep.pressure,
                 "heldout_moving_samples": int(prep.test.sum()),
                 "scores": {form: res.scores[form].get(prep.record.name) for form in FORMS},
                 "presliding_displacement_m": {
@@ -83,7 +83,7 @@ def loop_figure(res: SealResult, preps: list[Prepared]) -> Any:
     for row, prep in zip(axes, preps):
         m = prep.test
         since = since_reversal(prep.record.x, prep.v)
-        label = f"{prep.record.name} ({(np.mean(prep.p1) - 1e5) * 1e-5:.1f} bar gauge)"
+        label = f"{prep.record.name} ({prep.describe_pressure()})"
         row[0].plot(prep.v[m] * 1e3, prep.friction[m], ".", ms=2, color="0.6", label="measured")
         row[1].plot(since[m] * 1e3, prep.friction[m], ".", ms=2, color="0.6", label="measured")
         for form, colour in (("static", "tab:blue"), (res.selected, "tab:red")):
