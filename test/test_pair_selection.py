@@ -89,3 +89,26 @@ def test_a_pair_whose_refit_switches_a_member_off_is_refitted_as_the_other_alone
                                 lambda message: None)
     assert sorted(f.name for f in refitted) == ["valve_delay", "valve_lag:first_order"]
     assert all(f.calibrated for f in refitted)
+
+
+def test_the_pool_holds_distinct_effects_not_two_forms_of_one(monkeypatch):
+    """On top of the stand-in, both forms of the valve lag fit a little better than the delay;
+    a pool of the two lag forms would shut the delay out, and delay + leak (the truth) would
+    never be fitted. The pool takes each effect's best form: the second-order lag and the
+    delay."""
+    import test_pair_selection as table
+
+    names = (*NAMES, "valve_lag:second_order")
+    errors = {**ERRORS, ("valve_lag:second_order",): 1.15,
+              ("sensor_dynamics", "valve_lag:second_order"): 0.15,
+              ("sensor_dynamics", "valve_lag:first_order"): 0.155,
+              ("leakage:laminar", "valve_lag:second_order"): 0.06}
+    monkeypatch.setattr(table, "ERRORS", errors)
+    fitter = TableFitter()
+    singles = {e: fitter.fit((CAL, e)) for e in names}
+    pairs, _ = fit_pairs(fitter, object(), singles["sensor_dynamics"], singles, names,
+                         lambda message: None)
+    got = [frozenset(p.effects) for p in pairs]
+    assert got[:PAIR_POOL] == [frozenset({"sensor_dynamics", "valve_lag:second_order"}),
+                               frozenset({"sensor_dynamics", "valve_delay"})]
+    assert frozenset({"valve_delay", "leakage:laminar"}) in got

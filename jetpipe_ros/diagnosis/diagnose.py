@@ -179,13 +179,22 @@ def _fitted(pairs: Sequence[Fit], members: tuple[str, str]) -> bool:
 
 def _grow(fitter: Fitter, nominal: ModelParams, base: Fit, others: Sequence[str],
           progress: Callable[[str], None]) -> list[Fit]:
-    """``others`` fitted on top of ``base`` (its knobs held), the :data:`PAIR_POOL` that lower
-    the training error most refitted jointly with it."""
+    """``others`` fitted on top of ``base`` (its knobs held), the :data:`PAIR_POOL` effects
+    that lower the training error most (each by its best form) refitted jointly with it.
+
+    The pool holds distinct effects: two forms of one effect are alternatives, and a pool of
+    them shuts out the other effects (seen: a transport delay beside a weak leak, best fitted
+    alone as a pressure sensor's lag; on top of it the two forms of the valve lag filled the
+    pool, so the delay never got its own round with the leak)."""
     progress(f"{base.name} leaves {base.holdout.gap:.2f} % of the gap: fitting each other "
              f"candidate on top of it")
     added = [stacked(base, f) for f in fitter.run([Job(base.params, (e,)) for e in others],
                                                  [f"{e} on top" for e in others])]
-    chosen = sorted(added, key=lambda f: f.train.total)[:PAIR_POOL]
+    best_form: dict[str, Fit] = {}
+    for f in sorted(added, key=lambda f: f.train.total):
+        (effect,) = [effect_of(g) for g in f.effects if g not in base.effects]
+        best_form.setdefault(effect, f)
+    chosen = list(best_form.values())[:PAIR_POOL]
     progress(f"refitting {', '.join(f.name for f in chosen)} jointly")
     return fitter.run([Job(nominal, f.groups, f.z, JOINT_BUDGET) for f in chosen])
 
