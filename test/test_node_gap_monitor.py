@@ -7,6 +7,7 @@ beside it. Then the simulator stops and the monitor says STALE."""
 
 from __future__ import annotations
 
+import bisect
 import csv
 import json
 
@@ -167,8 +168,11 @@ def test_effect_switched_on_is_flagged_captured_and_named(rig, ros_context):
         assert index[0]["received_rows"] == int(CAPTURE * 1000)
         assert len(stamps) == CAPTURE * 1000 - 1 - index[0]["incomplete_rows"]
         applied = listener.messages["voltage_applied"]
+        applied_stamps = sorted(applied)
         checked = 0
-        for stamp, r in rows[::97]:
+        # Every row the listener also got (on a loaded machine it lost up to 88 % of a stream:
+        # a sparse sample of the rows then held too few of them to tell).
+        for stamp, r in rows:
             if stamp not in listener.messages["joint_states"] or stamp not in \
                     listener.messages["chamber1/pressure"]:
                 continue  # the listener missed it
@@ -176,12 +180,12 @@ def test_effect_switched_on_is_flagged_captured_and_named(rig, ros_context):
             p1 = listener.messages["chamber1/pressure"][stamp].fluid_pressure
             assert float(r["y"]) == pytest.approx(y, rel=1e-8, abs=1e-12)
             assert float(r["p1"]) == pytest.approx(p1, rel=1e-8)
-            following = min((s for s in applied if s > stamp), default=None)
+            at = bisect.bisect_right(applied_stamps, stamp)
+            following = applied_stamps[at] if at < len(applied_stamps) else None
             if following is not None and following - stamp <= 1_000_000:  # the next sample
                 assert float(r["u"]) == pytest.approx(applied[following].position[0], abs=1e-8)
             checked += 1
-        # the listener's own losses aside (a third of them on a loaded machine), enough to tell
-        assert checked >= 20, (checked, len(rows[::97]))
+        assert checked >= 20, (checked, len(rows))
         # The twin's predictions carry the measurements' stamps, one for each in the window.
         predicted = [s for s in listener.messages["twin/joint_states"]
                      if stamps[0] <= s <= stamps[-1]]
