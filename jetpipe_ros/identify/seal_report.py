@@ -11,7 +11,7 @@ import numpy as np
 
 from jetpipe_ros.figures import png_img, pyplot
 from jetpipe_ros.identify.seal import (FORMS, Prepared, SealResult, measured_presliding,
-                                       since_reversal)
+                                       reverses, since_reversal)
 from jetpipe_ros.model.params import ModelParams
 
 SCHEMA = "jetpipe.friction/1"
@@ -86,10 +86,13 @@ def loop_figure(res: SealResult, preps: list[Prepared]) -> Any:
         label = f"{prep.record.name} ({prep.describe_pressure()})"
         row[0].plot(prep.v[m] * 1e3, prep.friction[m], ".", ms=2, color="0.6", label="measured")
         row[1].plot(since[m] * 1e3, prep.friction[m], ".", ms=2, color="0.6", label="measured")
-        for form, colour in (("static", "tab:blue"), (res.selected, "tab:red")):
+        for form, colour in {"static": "tab:blue", res.selected: "tab:red"}.items():
             model = res.model_of(form, prep).predict(prep)
             row[0].plot(prep.v[m] * 1e3, model[m], ".", ms=1.5, color=colour, label=form)
             row[1].plot(since[m] * 1e3, model[m], ".", ms=1.5, color=colour, label=form)
+        if not reverses(prep):
+            row[1].text(0.5, 0.5, "no reversal in this record:\npre-sliding cannot show",
+                        transform=row[1].transAxes, ha="center", va="center", fontsize=9)
         row[0].set_xlabel("velocity [mm/s]")
         row[1].set_xlabel("displacement since reversal [mm] (signed as the motion)")
         row[1].set_xlim(-3, 3)
@@ -111,7 +114,7 @@ def html_report(results: list[SealResult], doc: dict[str, Any]) -> str:
     parts = ["<!DOCTYPE html><html><head><meta charset='utf-8'><title>jetpipe friction</title>"
              "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}"
              "td,th{border:1px solid #ccc;padding:2px 6px;font-size:13px}</style></head><body>",
-             "<h1>Seal friction from friction-rig records</h1>",
+             "<h1>Seal friction from measured records</h1>",
              "<p>" + html.escape(doc["metric"]) + "</p>",
              "<h2>Held-out scores (medians over records)</h2><table><tr><th>form</th>"
              "<th>NRMSE</th><th>R^2</th><th>R^2 within direction</th></tr>" + table +
