@@ -31,6 +31,7 @@ def test_real_time_factor_and_flat_out():
     pacer.set_rate(2.0, now=1.0)
     assert pacer.due(1.01) == 20
     assert pacer.issued == 125
+    assert pacer.ticks == 4
 
 
 def test_bad_pacing_refused():

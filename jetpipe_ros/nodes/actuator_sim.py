@@ -305,7 +305,7 @@ class ActuatorSim(Node):
         """(Re)start the time line at wall time ``now`` [s, monotonic]."""
         self._pacer.set_rate(self._pacer.rate, now)
         self._stamp0 = 0 if self._sim else self.get_clock().now().nanoseconds
-        self._report_at = (now, self._samples)
+        self._report_at = (now, self._samples, self._pacer.ticks)
         self._started = now
 
     def _tick(self) -> None:
@@ -395,16 +395,17 @@ class ActuatorSim(Node):
     def report(self, final: bool = False) -> None:
         """Log the step rate since the last report (or, if ``final``, since the start)."""
         now = time.monotonic()
-        since, samples = (self._started, 0) if final else self._report_at
+        since, samples, ticks = (self._started, 0, 0) if final else self._report_at
         wall = max(now - since, 1e-9)
         n = self._samples - samples
         p = self._pacer
+        over = "" if self._lockstep else f" over {p.ticks - ticks} timer ticks"
         self.get_logger().info(
             f"{'total: ' if final else ''}stepped {n} samples in {wall:.2f} s: "
-            f"{n / wall:.1f} Hz ({n * self._dt / wall:.2f} x real time); largest catch-up "
+            f"{n / wall:.1f} Hz ({n * self._dt / wall:.2f} x real time){over}; largest catch-up "
             f"{p.largest} samples, overruns {p.overruns} ({p.dropped} samples dropped), "
             f"model resets {self._resets}")
-        self._report_at = (now, self._samples)
+        self._report_at = (now, self._samples, p.ticks)
 
 
 def _plain(v: Any) -> Any:

@@ -28,6 +28,7 @@ class Pacer:
         self.dt = dt
         self.max_batch = max_batch
         self.issued = 0  #: samples issued since the start
+        self.ticks = 0  #: calls of :meth:`due` since the start
         self.dropped = 0  #: samples of backlog dropped since the start
         self.overruns = 0  #: ticks at which a backlog was dropped
         self.largest = 0  #: most samples issued at one tick (1: never behind)
@@ -50,6 +51,7 @@ class Pacer:
 
     def due(self, now: float) -> int:
         """Samples to step at wall time ``now`` [s]; counts them as issued."""
+        self.ticks += 1
         if self._rate == 0.0:
             n = self.max_batch
         else:
