@@ -287,3 +287,24 @@ def read_yaml(path: str | os.PathLike[str], error: type[Exception], what: str = 
         raise error(f"{path}: cannot read{' ' + what if what else ''}: {exc.strerror}") from None
     except yaml.YAMLError as exc:
         raise error(f"{path}: not valid YAML: {exc}") from None
+
+
+def section_applies(key: str, node: str) -> bool:
+    """Whether the section ``key`` of a ROS parameters file applies to the node ``node``
+    (fully qualified, e.g. ``/axis1/actuator_sim``), as rcl matches them: a key without a
+    leading slash is taken from the root (``actuator_sim`` is ``/actuator_sim`` and does not
+    apply in a namespace), ``/**`` stands for any number of namespace levels and ``*`` for one
+    name (``/**`` applies to every node, ``/**/actuator_sim`` to that node in any namespace)."""
+    pattern = key if key.startswith("/") else "/" + key
+    regex = re.escape(pattern).replace(r"/\*\*", "(?:/[^/]+)*").replace(r"\*", "[^/]*")
+    return re.fullmatch(regex, node) is not None
+
+
+def ros_sections(tree: Any, node: str) -> list[str]:
+    """Keys of the ROS parameter sections (``key: {ros__parameters: ...}``) of a parsed
+    parameters file ``tree`` that apply to the node ``node`` (:func:`section_applies`), in the
+    file's order (rcl applies them in that order: a later section wins)."""
+    if not isinstance(tree, Mapping):
+        return []
+    return [k for k, v in tree.items() if isinstance(k, str) and isinstance(v, Mapping)
+            and "ros__parameters" in v and section_applies(k, node)]

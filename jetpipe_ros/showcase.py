@@ -80,7 +80,7 @@ def start_standin(nodes: Nodes, out: Path) -> ModelParams:
     params_file = out / "standin.yaml"
     # "/**/" so that the file applies to the node in the showcase namespace.
     fileio.write_text(params_file,
-                      standin.to_ros_yaml(node_name="/**/actuator_sim", only_changed=True))
+                      standin.to_ros_yaml(only_changed=True))
     nodes.start("actuator_sim", ["--params-file", str(share_file("config/actuator.yaml")),
                                  "--params-file", str(params_file), "-p", "time_mode:=sim",
                                  "-p", "lockstep:=true", "-p", "report_period:=0.0"])

@@ -18,7 +18,7 @@ CONFIG = REPO / "config" / "actuator.yaml"
 
 
 def _ros_parameters() -> dict:
-    return flatten(yaml.safe_load(CONFIG.read_text())["actuator_sim"]["ros__parameters"])
+    return flatten(yaml.safe_load(CONFIG.read_text())["/**/actuator_sim"]["ros__parameters"])
 
 
 def test_config_loads_and_equals_model_defaults():

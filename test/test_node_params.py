@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from jetpipe_ros.model import kernel
+from jetpipe_ros.model import ModelParams, kernel
 from jetpipe_ros.nodes.actuator_sim import ActuatorSim
 from jetpipe_ros.nodes.parameters import StartupError
 
@@ -62,6 +62,30 @@ def test_good_file_with_integers_and_effect(ros_context, tmp_path):
                 mass.floating_point_range[0].to_value) == (0.01, 100.0)
         assert not node.describe_parameter("command_timeout").read_only
         assert node.describe_parameter("time_mode").read_only
+    finally:
+        node.destroy_node()
+
+
+def test_a_section_that_would_not_apply_in_the_namespace_is_refused(ros_context, tmp_path):
+    """rcl reads ``actuator_sim:`` as ``/actuator_sim``: in namespace /axis1 it would run at its
+    defaults without a word; the node refuses and says how to key the file. ``/**/actuator_sim``
+    (what the tools write) applies there."""
+    plain = _params_file(tmp_path, "plain", "effects:\n  valve_lag: {enabled: true}\n")
+    args = ["--ros-args", "-r", "__ns:=/axis1", "--params-file", plain]
+    with pytest.raises(StartupError) as info:
+        ActuatorSim(context=ros_context, cli_args=args)
+    assert info.value.messages == [
+        f"{plain}: section 'actuator_sim' does not apply to /axis1/actuator_sim (a section "
+        "without a leading '/' is read from the root namespace), so none of its parameters "
+        "would be used; key it '/**/actuator_sim:' (any namespace) or '/axis1/actuator_sim:'"]
+    anywhere = tmp_path / "anywhere.yaml"
+    anywhere.write_text(ModelParams().with_effect("valve_lag").to_ros_yaml(only_changed=True))
+    node = ActuatorSim(context=ros_context,
+                       cli_args=["--ros-args", "-r", "__ns:=/axis1", "--params-file",
+                                 str(anywhere)])
+    try:
+        assert node.get_fully_qualified_name() == "/axis1/actuator_sim"
+        assert node.actuator.params.enabled_effects() == ["valve_lag"]
     finally:
         node.destroy_node()
 

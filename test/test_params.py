@@ -2,6 +2,7 @@
 
 import pytest
 
+from jetpipe_ros.fileio import section_applies
 from jetpipe_ros.model import SPECS, ModelParams, ParameterError, load_params
 
 
@@ -19,6 +20,36 @@ def test_ros_layout_and_plain_nesting_load_the_same(tmp_path):
     assert params["effects.valve_lag.corner_frequency"] == 25.0
     plain = write(tmp_path, "effects: {valve_lag: {enabled: true, corner_frequency: 25.0}}\n")
     assert dict(load_params(plain)) == dict(params)
+
+
+@pytest.mark.parametrize(("key", "node", "applies"), [
+    ("actuator_sim", "/actuator_sim", True),  # rcl reads it from the root namespace
+    ("actuator_sim", "/axis1/actuator_sim", False),  # ... so not in /axis1
+    ("/**", "/axis1/actuator_sim", True),
+    ("/**/actuator_sim", "/actuator_sim", True),
+    ("/**/actuator_sim", "/plant/axis1/actuator_sim", True),
+    ("/**/actuator_sim", "/axis1/controller", False),
+    ("/axis1/actuator_sim", "/axis2/actuator_sim", False),
+    ("/*/actuator_sim", "/axis2/actuator_sim", True),
+    ("/*/actuator_sim", "/actuator_sim", False),  # * is one level, /** any number
+])
+def test_ros_sections_apply_as_rcl_matches_them(key, node, applies):
+    assert section_applies(key, node) == applies
+
+
+def test_every_section_for_the_node_is_read_offline(tmp_path):
+    """Offline there is no namespace: sections for the node in any namespace are read in the
+    file's order (a later one wins, as in rcl); a file without one names its sections."""
+    path = write(tmp_path, "/**:\n  ros__parameters: {mechanics: {mass: 2.0}}\n"
+                           "controller:\n  ros__parameters: {kp: 300.0}\n"
+                           "/axis1/actuator_sim:\n  ros__parameters:\n"
+                           "    mechanics: {mass: 3.0}\n    effects: {valve_lag: {enabled: true}}\n")
+    params = load_params(path)
+    assert params["mechanics.mass"] == 3.0 and params.enabled_effects() == ["valve_lag"]
+    other = write(tmp_path, "controller:\n  ros__parameters: {kp: 300.0}\n")
+    with pytest.raises(ParameterError, match="no ros__parameters section for actuator_sim "
+                                             r"\(sections: controller\)"):
+        load_params(other)
 
 
 def test_round_trip_through_ros_yaml(tmp_path):

@@ -4,7 +4,8 @@ Every parameter the simulator understands is declared once in :data:`SPECS` with
 default, unit, range and description. The same schema validates YAML files for the offline tools
 and declares the ROS parameters of ``actuator_sim``, so a name, a unit or a range is never written
 twice. Names are dotted (``effects.valve_lag.corner_frequency``); YAML files may nest them, and may
-use the ROS layout ``actuator_sim: ros__parameters: ...``.
+use the ROS layout ``/**/actuator_sim: ros__parameters: ...`` (any section that applies to a node
+of that name, in any namespace).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from typing import Any
 
 import yaml
 
-from jetpipe_ros.fileio import read_yaml
+from jetpipe_ros.fileio import read_yaml, section_applies
 from jetpipe_ros.model.chamber import chamber_volumes
 from jetpipe_ros.model.errors import ParameterError
 from jetpipe_ros.model.friction import FRICTION_FORMS, MAX_ELEMENTS
@@ -397,9 +398,10 @@ class ModelParams(Mapping[str, Any]):
         return {k: v for k, v in self._values.items() if v != SPECS[k].default}
 
     def to_ros_yaml(self, node_name: str = NODE_NAME, only_changed: bool = False) -> str:
-        """YAML text in the ROS params-file layout, loadable by the node and the CLI."""
+        """YAML text in the ROS params-file layout, loadable by the node in any namespace
+        (section ``/**/<node_name>``) and by the CLI."""
         values = self.non_default() if only_changed else dict(self._values)
-        tree = {node_name: {"ros__parameters": _unflatten(values)}}
+        tree = {f"/**/{node_name}": {"ros__parameters": _unflatten(values)}}
         return yaml.safe_dump(tree, sort_keys=False, default_flow_style=None)
 
 
@@ -442,11 +444,20 @@ def params_from_tree(tree: Mapping[str, Any], where: str = "",
     """
     if not isinstance(tree, Mapping):
         raise ParameterError(f"{where}: expected a mapping of parameters, got {type(tree).__name__}")
-    if node_name in tree or "/**" in tree:
-        section = tree.get(node_name, tree.get("/**"))
-        if not isinstance(section, Mapping) or "ros__parameters" not in section:
-            raise ParameterError(f"{where}: {node_name} has no ros__parameters section")
-        tree = section["ros__parameters"]
+    sections = [k for k, v in tree.items() if isinstance(v, Mapping) and "ros__parameters" in v]
+    if sections or node_name in tree:
+        # The ROS layout. Offline there is no namespace: every section that would apply to the
+        # node in some namespace is read, in the file's order (a later one wins, as in rcl).
+        mine = [k for k in sections if section_applies(k, "/" + node_name)
+                or str(k).rsplit("/", 1)[-1] == node_name]
+        if not mine:
+            raise ParameterError(
+                f"{where}: no ros__parameters section for {node_name} (sections: "
+                f"{', '.join(map(str, sections)) or 'none'}); key it '/**/{node_name}:'")
+        merged: dict[str, Any] = {}
+        for k in mine:
+            merged.update(flatten(tree[k]["ros__parameters"] or {}))
+        tree = _unflatten(merged)
     flat = {k: v for k, v in flatten(tree).items() if k.split(".")[0] not in ignore
             and k not in ignore}
     return ModelParams(flat, where)

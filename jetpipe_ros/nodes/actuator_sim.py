@@ -60,7 +60,7 @@ from jetpipe_ros.model.limits import LOAD_FACTOR, load_limit
 from jetpipe_ros.model.params import NODE_NAME, ParamSpec, check_value
 from jetpipe_ros.nodes import interface, process
 from jetpipe_ros.nodes.pacing import Pacer
-from jetpipe_ros.nodes.parameters import (StartupError, declare, set_explained,
+from jetpipe_ros.nodes.parameters import (StartupError, declare, set_explained, skipped_sections,
                                           unknown_overrides, value)
 from jetpipe_ros.package_data import share_file
 
@@ -106,7 +106,7 @@ class ActuatorSim(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        params, opts = self._load_parameters()
+        params, opts = self._load_parameters(kwargs.get("cli_args"))
         self.opts = opts
         Actuator(params).step(0.0)  # compile (or load) the kernel before the clock starts
         self.actuator = Actuator(params)
@@ -156,8 +156,10 @@ class ActuatorSim(Node):
 
     # -- start-up ---------------------------------------------------------------------------
 
-    def _load_parameters(self) -> tuple[ModelParams, dict[str, Any]]:
-        """Declare and validate every parameter; raise StartupError listing all problems."""
+    def _load_parameters(self, cli_args: Sequence[str] | None
+                         ) -> tuple[ModelParams, dict[str, Any]]:
+        """Declare and validate every parameter (``cli_args``: the node's own command line, as
+        given to its constructor); raise StartupError listing all problems."""
         static = [s for s in NODE_SPECS.values() if s.name not in DYNAMIC]
         errors = declare(self, [SPECS[n] for n in MODEL_STATIC], read_only=True)
         errors += declare(self, [s for s in SPECS.values() if s.name not in MODEL_STATIC],
@@ -169,6 +171,7 @@ class ActuatorSim(Node):
                 ModelParams({name: None})  # names the unknown effect or parameter
             except ParameterError as exc:
                 errors.append(str(exc))
+        errors += skipped_sections(self, cli_args)
         if errors:
             raise StartupError(errors)
         try:

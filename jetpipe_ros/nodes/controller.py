@@ -34,7 +34,7 @@ from jetpipe_ros.control import SPECS, Pid, PidConfig
 from jetpipe_ros.model import ParameterError
 from jetpipe_ros.model.params import ParamSpec
 from jetpipe_ros.nodes import interface, process
-from jetpipe_ros.nodes.parameters import (StartupError, declare, set_explained,
+from jetpipe_ros.nodes.parameters import (StartupError, declare, set_explained, skipped_sections,
                                           unknown_overrides, value)
 
 NODE_NAME = "controller"
@@ -59,6 +59,7 @@ class Controller(Node):
         errors += declare(self, [NODE_SPECS["sample_time"]], read_only=True)
         errors += [f"unknown parameter {n!r}" for n in
                    unknown_overrides(self, [*SPECS, *NODE_SPECS])]
+        errors += skipped_sections(self, kwargs.get("cli_args"))
         config = None
         if not errors:
             try:

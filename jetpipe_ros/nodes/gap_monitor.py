@@ -49,7 +49,7 @@ from std_srvs.srv import Trigger
 from jetpipe_ros.model import ModelParams, ParameterError, load_params
 from jetpipe_ros.model.params import ParamSpec
 from jetpipe_ros.nodes import interface, process
-from jetpipe_ros.nodes.parameters import (StartupError, declare, set_explained,
+from jetpipe_ros.nodes.parameters import (StartupError, declare, set_explained, skipped_sections,
                                           unknown_overrides, value)
 from jetpipe_ros.twin import Level, Settings, Twin
 from jetpipe_ros.twin.capture import Recent, write_capture
@@ -111,6 +111,7 @@ class GapMonitor(Node):
         errors = declare(self, static, read_only=True)
         errors += declare(self, [NODE_SPECS[n] for n in DYNAMIC], read_only=False)
         errors += [f"unknown parameter {n!r}" for n in unknown_overrides(self, NODE_SPECS)]
+        errors += skipped_sections(self, kwargs.get("cli_args"))
         if errors:
             raise StartupError(errors)
         self.opts = {n: value(self, n) for n in NODE_SPECS}

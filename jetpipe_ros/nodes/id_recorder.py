@@ -67,7 +67,7 @@ from jetpipe_ros.bag import BagWriter
 from jetpipe_ros.campaign import Campaign, CampaignError, Phase, load_campaign
 from jetpipe_ros.model.params import ParamSpec
 from jetpipe_ros.nodes import interface, process
-from jetpipe_ros.nodes.parameters import (StartupError, declare, set_explained,
+from jetpipe_ros.nodes.parameters import (StartupError, declare, set_explained, skipped_sections,
                                           unknown_overrides, value)
 from jetpipe_ros.package_data import PackageDataError, share_file
 
@@ -119,6 +119,7 @@ class Recorder(Node):
         super().__init__(NODE_NAME, **kwargs)
         errors = declare(self, NODE_SPECS.values(), read_only=True)
         errors += [f"unknown parameter {n!r}" for n in unknown_overrides(self, NODE_SPECS)]
+        errors += skipped_sections(self, kwargs.get("cli_args"))
         if errors:
             raise StartupError(errors)
         self.opts = {n: value(self, n) for n in NODE_SPECS}

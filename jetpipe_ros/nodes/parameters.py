@@ -2,7 +2,8 @@
 
 Each parameter gets a ``ParameterDescriptor`` with its description, unit and range, so
 ``ros2 param describe`` shows them and rclpy refuses out-of-range values. Start-up problems
-(wrong type, out of range, unknown name) are collected, not raised one by one, so a node can
+(wrong type, out of range, unknown name, a parameters file whose section for the node does not
+apply to it: :func:`skipped_sections`) are collected, not raised one by one, so a node can
 report every bad parameter of a file at once. At run time (``ros2 param set``),
 :func:`set_explained` widens integers given for floating-point parameters, as start-up does, and
 words rclpy's terse refusals ("expected '3' got '2'", "undeclared parameter(s): []") so that
@@ -12,7 +13,8 @@ they name the parameter and the types.
 from __future__ import annotations
 
 import array
-from collections.abc import Iterable
+import sys
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
@@ -21,6 +23,7 @@ from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValu
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from jetpipe_ros.fileio import load_yaml, ros_sections
 from jetpipe_ros.model.errors import ParameterError
 from jetpipe_ros.model.params import ParamSpec, check_value
 
@@ -151,6 +154,37 @@ def unknown_overrides(node: Node, known: Iterable[str]) -> list[str]:
     known = set(known)
     return sorted(name for name in parameter_overrides(node)
                   if name not in known and not node.has_parameter(name))
+
+
+def skipped_sections(node: Node, cli_args: Sequence[str] | None = None) -> list[str]:
+    """Why a ``--params-file`` given to the process (``sys.argv``) or to the node itself
+    (``cli_args``, as given to its constructor) would leave ``node`` without the parameters
+    meant for it, one line per file: the file has a
+    section for a node of this name and none that applies to this one. rcl skips such a file
+    silently: ``actuator_sim:`` is read from the root namespace, so under
+    ``-r __ns:=/axis1`` the node would run at its defaults (``/**/actuator_sim:`` applies in any
+    namespace: :func:`~jetpipe_ros.fileio.ros_sections`). Files that cannot be read are left
+    to rcl, which reports them."""
+    args = [*sys.argv, *(cli_args or [])]
+    name, fqn = node.get_name(), node.get_fully_qualified_name()
+    problems = []
+    for flag, path in zip(args, args[1:]):
+        if flag != "--params-file":
+            continue
+        try:
+            tree = load_yaml(path)
+        except Exception:  # noqa: BLE001 - rcl reports what it cannot read
+            continue
+        if not isinstance(tree, Mapping) or ros_sections(tree, fqn):
+            continue
+        meant = [k for k in tree if isinstance(k, str) and k.rsplit("/", 1)[-1] == name]
+        if meant:
+            problems.append(
+                f"{path}: section {', '.join(repr(k) for k in meant)} does not apply to "
+                f"{fqn} (a section without a leading '/' is read from the root namespace), so "
+                f"none of its parameters would be used; key it '/**/{name}:' (any namespace) "
+                f"or '{fqn}:'")
+    return problems
 
 
 def value(node: Node, name: str) -> Any:
