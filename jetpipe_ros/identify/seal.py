@@ -74,10 +74,10 @@ SEAL_NFEV = 40
 #: levels (the Maxwell-slip elements' deflections do not depend on them; LuGre's bristle does).
 PROFILE_FORMS = ("coulomb_viscous", "static", "maxwell_slip")
 #: Spacing of the bore profile's knots [m] (chosen by leave-one-seal-out: docs/friction.md).
-KNOT_SPACING = 2e-3
+KNOT_SPACING = 1e-3
 #: Ridge prior of the profile: a knot's factor is pulled to 1 as if by this many samples at
 #: the level, so a knot few samples reach stays near 1 (leave-one-seal-out: docs/friction.md).
-PROFILE_PRIOR = 10.0
+PROFILE_PRIOR = 3.0
 #: The profile is fitted on samples at least this far [m] past the last reversal (where the
 #: records' friction has reached its level, as :func:`measured_presliding` takes it), so it does
 #: not absorb the pre-sliding build-up at the stroke's ends, where a rig always reverses.

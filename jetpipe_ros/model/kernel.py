@@ -16,7 +16,8 @@ of length h:
 4. the piston velocity advances with the viscous friction implicit (F_v/M reaches ~4000 1/s),
    and Eq. 15's stick condition is checked whenever the velocity reaches or crosses zero, so
    stick-slip cannot chatter; with the friction_dynamics effect a LuGre bristle state or
-   Maxwell-slip elements replace the stick logic (the elements' stiffness implicit too);
+   Maxwell-slip elements replace the stick logic (the elements' stiffness implicit too); the
+   bore profile scales the friction levels at the piston's position;
 5. the position advances (semi-implicit Euler) and stops inelastically at the end stops.
 
 Steps 1-2 depend on the command only, so :func:`advance` runs them ahead over a block of samples
