@@ -107,8 +107,11 @@ def test_real_record_presliding_within_its_measured_range():
     static = fit_form("static", [prep], prep.record.file)  # one side at atmosphere: no error
     judged = {name: scores(prep.friction[prep.test], f.predict(prep)[prep.test],
                            prep.v[prep.test]) for name, f in (("ms", fit), ("static", static))}
-    assert judged["ms"]["nrmse"] < 0.035 < judged["static"]["nrmse"]
-    assert judged["ms"]["r2_within"] > 0.5 > judged["static"]["r2_within"]
+    # The must-show (NRMSE <= 3.5 %, R^2 within >= 0.5), and clearly ahead of the
+    # static form (both with the record's bore profile).
+    assert judged["ms"]["nrmse"] < min(0.035, 0.7 * judged["static"]["nrmse"])
+    assert judged["ms"]["r2_within"] > max(0.5, judged["static"]["r2_within"] + 0.2)
+    assert fit.profile.shape[1] > 20 and static.profile.shape[1] > 20
 
 
 def test_the_diagnosis_candidates_typical_seal_lies_among_the_shipped_records():

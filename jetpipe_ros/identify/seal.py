@@ -82,6 +82,10 @@ PROFILE_PRIOR = 3.0
 #: records' friction has reached its level, as :func:`measured_presliding` takes it), so it does
 #: not absorb the pre-sliding build-up at the stroke's ends, where a rig always reverses.
 SETTLED = 3e-3
+#: A profile needs the training samples to pass the same positions this many times in each
+#: direction: along a single pass the position is confounded with the speed and the time (an
+#: actuator's friction test slides once), so the factors would take the Stribeck curve's shape.
+MIN_PASSES = 2
 #: Evaluations of the refit of the other parameters with the profile held.
 PROFILE_NFEV = 60
 
@@ -393,6 +397,19 @@ def _least_squares(form: str, trained: list[Prepared], held: np.ndarray, free: n
     return None, sol.message if sol.status < 0 else "non-finite residuals"
 
 
+def passes(preps: list[Prepared]) -> tuple[int, int]:
+    """Passes (exit, entry) of the training samples of ``preps``: runs of moving samples in
+    one direction, a run ending where the direction changes."""
+    counts = [0, 0]
+    for p in preps:
+        sign = np.sign(p.v[p.train])
+        if sign.size:
+            starts = np.concatenate([[0], np.flatnonzero(sign[1:] != sign[:-1]) + 1])
+            counts[0] += int(np.sum(sign[starts] > 0))
+            counts[1] += int(np.sum(sign[starts] < 0))
+    return counts[0], counts[1]
+
+
 def _normalised(fit: FormFit) -> FormFit:
     """``fit`` with each direction's profile factors divided by their mean over the knots and
     its level (a and b) multiplied by it: the same friction, the level the mean over the
@@ -430,7 +447,10 @@ def fit_profile(fit: FormFit, preps: list[Prepared], spacing: float = KNOT_SPACI
     pulling each factor to 1, clipped to the parameters' range. Along a prescribed motion the
     form's friction is F = f_exit(x) E + f_entry(x) N + R (``fit``'s prediction with one
     direction's level only, and with neither), so the factors are linear. No profile (3, 0)
-    when the records travel less than two knot spacings."""
+    when the records travel less than two knot spacings, or pass fewer than
+    :data:`MIN_PASSES` times each way."""
+    if min(passes(preps)) < MIN_PASSES:
+        return no_profile()
     masks = [p.train & ~(np.abs(since_reversal(p.record.x, p.v)) < settled) for p in preps]
     xs = np.concatenate([p.record.x[m] for p, m in zip(preps, masks)])
     if xs.size < 2 or np.ptp(xs) < 2.0 * spacing:
@@ -552,9 +572,10 @@ def identify_seal(seal: str, preps: list[Prepared], split: float = 0.5) -> SealR
     samples with its own fit (a ``role: holdout`` record with the seal's), and select a form
     (:func:`select`)."""
     files = ", ".join(p.record.file for p in preps)
+    who = f"seal {seal}: " if seal else ""
     trained = [p for p in preps if p.train.any()]
     if not trained:
-        raise DatasetError(f"{seal}: no moving training samples in {files} (all role: "
+        raise DatasetError(f"{who}no moving training samples in {files} (all role: "
                            f"holdout, or the rod never moves faster than "
                            f"{MIN_SPEED * 1e3:g} mm/s)")
     per_record: dict[str, dict[str, FormFit]] = {}
@@ -575,7 +596,7 @@ def identify_seal(seal: str, preps: list[Prepared], split: float = 0.5) -> SealR
                 judged[form][p.record.name] = scores(
                     p.friction[p.test], fit.predict(p)[p.test], p.v[p.test])
     if not judged[FORMS[0]]:
-        raise DatasetError(f"{seal}: no held-out moving samples in {files} (split {split:g})")
+        raise DatasetError(f"{who}no held-out moving samples in {files} (split {split:g})")
     return SealResult(seal=seal, preps=preps, per_record=per_record, seal_fits=seal_fits,
                       scores=judged, selected=select(judged, preps))
 
