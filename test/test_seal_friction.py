@@ -125,7 +125,8 @@ def test_the_diagnosis_candidates_typical_seal_lies_among_the_shipped_records():
     from jetpipe_ros.plant import REAL_EFFECTS
 
     preps = [prepare(r) for r in read_records(SEALS)]
-    fits = [fit_form("maxwell_slip", [p], p.record.file) for p in preps]
+    # As the typical size was fitted: without the bore profile.
+    fits = [fit_form("maxwell_slip", [p], p.record.file, profile=False) for p in preps]
     for name in ("presliding_displacement", "presliding_spread"):
         fitted = [f.values[name] for f in fits]
         assert min(fitted) < SEAL_SIZE[name] < max(fitted), (name, fitted)
