@@ -11,8 +11,8 @@ import pytest
 
 from jetpipe_ros.cli import main
 from jetpipe_ros.dataset import DatasetError, read_dataset, read_records
-from jetpipe_ros.identify.seal import (fit_form, measured_presliding, planes_of, prepare,
-                                       scores)
+from jetpipe_ros.identify.seal import (fit_form, measured_presliding, no_profile, planes_of,
+                                       prepare, scores)
 from jetpipe_ros.model import load_params
 from jetpipe_ros.model.actuator import simulate
 from jetpipe_ros.model.flow import P_ATM
@@ -41,11 +41,17 @@ TRUTH = {"exit.level": 9.0, "exit.slope": 0.0, "exit.ratio": 0.6,
          "entry.level": 3.5, "entry.slope": 0.0, "entry.ratio": 1.4,
          "entry.stribeck_velocity": 4e-3, "entry.viscous": 20.0}
 DELTA, SPREAD = 1.1e-3, 0.04
+#: The synthetic seal's bore profile: a ripple of +-10 % (exit) and +-8 % (entry) along the
+#: bore, away from the fit's start (every factor 1).
+KNOTS = np.linspace(-2e-3, 32e-3, 69)
+PROFILE = np.vstack([KNOTS, 1.0 + 0.10 * np.sin(2 * np.pi * KNOTS / 12e-3),
+                     1.0 - 0.08 * np.cos(2 * np.pi * KNOTS / 15e-3)])
 
 
 def _synthetic(tmp_path: Path) -> Path:
-    """A rig record made by the model's Maxwell-slip friction with :data:`TRUTH`: a smoothed
-    triangle stroke of 30 mm at 12 mm/s, 4 bar gauge, force noise 0.05 N, and logger gaps."""
+    """A rig record made by the model's Maxwell-slip friction with :data:`TRUTH` and the bore
+    profile :data:`PROFILE`: a smoothed triangle stroke of 30 mm at 12 mm/s, 4 bar gauge, force
+    noise 0.05 N, and logger gaps."""
     dt = 0.01
     t = np.arange(0.0, 40.0, dt)
     phase = (t / 5.0) % 2.0
@@ -53,8 +59,8 @@ def _synthetic(tmp_path: Path) -> Path:
     x = 0.03 * np.convolve(tri, np.ones(15) / 15, mode="same")
     v = np.gradient(x, dt)
     p = np.full(t.size, P_ATM + 4e5)
-    f = prescribed_friction(MAXWELL_SLIP, planes_of(TRUTH), v, p, np.full(t.size, P_ATM), dt,
-                            0.0, 0.0, element_slips(DELTA, SPREAD, 3))
+    f = prescribed_friction(MAXWELL_SLIP, planes_of(TRUTH), PROFILE, v, x, p,
+                            np.full(t.size, P_ATM), dt, 0.0, 0.0, element_slips(DELTA, SPREAD, 3))
     force = f + (p - P_ATM) * AREA + np.random.default_rng(1).normal(0.0, 0.05, t.size)
     keep = np.ones(t.size, dtype=bool)
     for start in range(300, t.size - 40, 700):
@@ -63,12 +69,17 @@ def _synthetic(tmp_path: Path) -> Path:
 
 
 def test_synthetic_record_recovers_its_maxwell_slip_parameters(tmp_path):
+    """The sliding levels at the stroke's speed (12 mm/s: one speed does not separate F_C from
+    F_v v) within 3 %, delta within 15 %, and the bore profile's factors within 0.03 of the
+    truth where the fit sees settled sliding in both directions (3-27 mm: a direction's first
+    3 mm after a reversal is left to the pre-sliding)."""
     record, = read_records(_synthetic(tmp_path))
     assert not record.valid.all()  # the gaps are masked, not refused
     prep = prepare(record)
     fit = fit_form("maxwell_slip", [prep], record.file)
-    for name in ("exit.level", "entry.level"):
-        assert fit.values[name] == pytest.approx(TRUTH[name], rel=0.03)
+    for d in ("exit", "entry"):
+        assert fit.values[f"{d}.level"] + 0.012 * fit.values[f"{d}.viscous"] == pytest.approx(
+            TRUTH[f"{d}.level"] + 0.012 * TRUTH[f"{d}.viscous"], rel=0.03)
     assert fit.values["exit.ratio"] == pytest.approx(0.6, abs=0.1)
     assert fit.values["presliding_displacement"] == pytest.approx(DELTA, rel=0.15)
     assert presliding_displacement(fit.slips) == pytest.approx(
@@ -76,6 +87,11 @@ def test_synthetic_record_recovers_its_maxwell_slip_parameters(tmp_path):
     model = fit.predict(prep)
     assert scores(prep.friction[prep.test], model[prep.test], prep.v[prep.test])[
         "r2_within"] > 0.95
+    inside = (fit.profile[0] > 3e-3) & (fit.profile[0] < 27e-3)
+    assert inside.sum() >= 10
+    for row in (1, 2):
+        truth = np.interp(fit.profile[0, inside], PROFILE[0], PROFILE[row])
+        assert np.max(np.abs(fit.profile[row, inside] - truth)) < 0.03, row
 
 
 def test_real_record_presliding_within_its_measured_range():
@@ -91,8 +107,11 @@ def test_real_record_presliding_within_its_measured_range():
     static = fit_form("static", [prep], prep.record.file)  # one side at atmosphere: no error
     judged = {name: scores(prep.friction[prep.test], f.predict(prep)[prep.test],
                            prep.v[prep.test]) for name, f in (("ms", fit), ("static", static))}
-    assert judged["ms"]["nrmse"] < 0.035 < judged["static"]["nrmse"]
-    assert judged["ms"]["r2_within"] > 0.5 > judged["static"]["r2_within"]
+    # The issue's must-show (NRMSE <= 3.5 %, R^2 within >= 0.5), and clearly ahead of the
+    # static form (both with the record's bore profile).
+    assert judged["ms"]["nrmse"] < min(0.035, 0.7 * judged["static"]["nrmse"])
+    assert judged["ms"]["r2_within"] > max(0.5, judged["static"]["r2_within"] + 0.2)
+    assert fit.profile.shape[1] > 20 and static.profile.shape[1] > 20
 
 
 def test_the_diagnosis_candidates_typical_seal_lies_among_the_shipped_records():
@@ -106,7 +125,8 @@ def test_the_diagnosis_candidates_typical_seal_lies_among_the_shipped_records():
     from jetpipe_ros.plant import REAL_EFFECTS
 
     preps = [prepare(r) for r in read_records(SEALS)]
-    fits = [fit_form("maxwell_slip", [p], p.record.file) for p in preps]
+    # As the typical size was fitted: without the bore profile.
+    fits = [fit_form("maxwell_slip", [p], p.record.file, profile=False) for p in preps]
     for name in ("presliding_displacement", "presliding_spread"):
         fitted = [f.values[name] for f in fits]
         assert min(fitted) < SEAL_SIZE[name] < max(fitted), (name, fitted)
@@ -190,6 +210,37 @@ def test_kernel_maxwell_slip_holds_a_force_below_breakaway_by_presliding():
     assert slips[0] < trace.y[-1] < slips[1]  # the stiffest element slips, the others hold
     assert f_s * np.mean(np.minimum(trace.y[-1] / slips, 1.0)) == pytest.approx(force, rel=0.01)
     assert trace.friction[-1] == pytest.approx(force, rel=0.01)
+
+
+@pytest.mark.parametrize("form", ["static", "maxwell_slip"])
+def test_kernel_scales_the_level_by_the_bore_profile(form):
+    """A regulated piston pushed out (0.1 bar across it) slides from y = -20 mm through a bore
+    whose exit level doubles linearly to y = +20 mm: once sliding, the kernel's friction is
+    Eq. 18 with F_S and F_C times the profile's factor at the piston (the viscous term not
+    scaled), within 0.2 N, in the static form and in the Maxwell-slip form's sliding."""
+    from jetpipe_ros.model import ModelParams
+    from jetpipe_ros.model.friction import friction_parameters
+    from jetpipe_ros.model.actuator import build_constants
+
+    p1, p2 = 5.0e5, 4.9e5
+    params = ModelParams({"chamber.regulated": True, "chamber.initial_pressure_1": p1,
+                          "chamber.initial_pressure_2": p2,
+                          "mechanics.initial_position": -0.02,
+                          "friction.profile.position": [-0.02, 0.02],
+                          "friction.profile.exit": [1.0, 2.0],
+                          "friction.profile.entry": [1.0, 1.0]})
+    if form == "maxwell_slip":
+        params = params.with_effect("friction_dynamics", form="maxwell_slip",
+                                    presliding_displacement=5e-4, presliding_spread=0.1)
+    trace = simulate(params, np.zeros(3000))
+    f_s, v_s, f_v, f_c = friction_parameters(build_constants(params).planes, 1.0, p1, p2)
+    sliding = (trace.y > -0.015) & (trace.y < 0.02)
+    assert sliding.sum() > 500 and np.all(trace.v[sliding] > 0)
+    y, v = trace.y[sliding], trace.v[sliding]
+    factor = np.interp(y, [-0.02, 0.02], [1.0, 2.0])
+    expected = factor * (f_c + (f_s - f_c) * np.exp(-(v / v_s) ** 2)) + f_v * v
+    assert np.max(np.abs(trace.friction[sliding] - expected)) < 0.2
+    assert np.ptp(factor) > 0.5
 
 
 def test_a_rod_that_never_moves_is_one_line_naming_the_record(tmp_path, capsys):

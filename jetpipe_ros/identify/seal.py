@@ -13,7 +13,11 @@ from a few physically bounded parameters per direction of motion (exit: v > 0, e
 - the breakaway F_S = r F_C with 0.2 <= r <= 2 (r < 1: no Stribeck dip, friction rising with
   speed), a Stribeck velocity v_s and a viscous F_v, constant over pressure;
 - ``lugre``: a bristle stiffness sigma_0 (no damping); ``maxwell_slip``: the pre-sliding
-  displacement delta and the spread of three elements.
+  displacement delta and the spread of three elements;
+- a bore profile (:func:`fit_profile`): factors on each direction's level at knots
+  :data:`KNOT_SPACING` apart along the travelled positions, for the forms whose friction along a
+  prescribed motion is linear in the level (:data:`PROFILE_FORMS`), fitted by ridge least
+  squares between two fits of the other parameters.
 
 The actuator's own friction tests (a dataset's free-piston tests with the chamber pressures held
 by regulators and the piston released progressively, Sec. 4.2, both pressures measured) are
@@ -35,7 +39,7 @@ forms when no record reverses (:func:`select`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -50,7 +54,7 @@ from jetpipe_ros.identify.friction import friction_force
 from jetpipe_ros.model.flow import P_ATM
 from jetpipe_ros.model.friction import (LUGRE, MAXWELL_SLIP, STATIC, element_slips,
                                         prescribed_friction, presliding_displacement)
-from jetpipe_ros.model.params import ModelParams
+from jetpipe_ros.model.params import MAX_KNOTS, PROFILE_HIGH, PROFILE_LOW, ModelParams
 
 FORMS = ("coulomb_viscous", "static", "lugre", "maxwell_slip")
 STATIC_FORMS = FORMS[:2]
@@ -66,6 +70,24 @@ MIN_PRESSURE_SPAN = 0.5
 DIRECTIONS = ("exit", "entry")
 #: Evaluations of the joint fit of a seal's records that refines their combined fits.
 SEAL_NFEV = 40
+#: Forms fitted with a bore profile: along a prescribed motion their friction is linear in the
+#: levels (the Maxwell-slip elements' deflections do not depend on them; LuGre's bristle does).
+PROFILE_FORMS = ("coulomb_viscous", "static", "maxwell_slip")
+#: Spacing of the bore profile's knots [m] (chosen by leave-one-seal-out: docs/friction.md).
+KNOT_SPACING = 1e-3
+#: Ridge prior of the profile: a knot's factor is pulled to 1 as if by this many samples at
+#: the level, so a knot few samples reach stays near 1 (leave-one-seal-out: docs/friction.md).
+PROFILE_PRIOR = 3.0
+#: The profile is fitted on samples at least this far [m] past the last reversal (where the
+#: records' friction has reached its level, as :func:`measured_presliding` takes it), so it does
+#: not absorb the pre-sliding build-up at the stroke's ends, where a rig always reverses.
+SETTLED = 3e-3
+#: A profile needs the training samples to pass the same positions this many times in each
+#: direction: along a single pass the position is confounded with the speed and the time (an
+#: actuator's friction test slides once), so the factors would take the Stribeck curve's shape.
+MIN_PASSES = 2
+#: Evaluations of the refit of the other parameters with the profile held.
+PROFILE_NFEV = 60
 
 #: Per direction: level a [N], slope b [N/bar], ratio r = F_S/F_C, v_s [m/s], F_v [N s/m].
 _PER_DIRECTION = (("level", -1e3, 1e4), ("slope", -1e3, 1e3), ("ratio", 0.2, 2.0),
@@ -127,6 +149,11 @@ class Prepared:
         return bool(np.any(self.train & (sign * self.v > 0)))
 
 
+def no_profile() -> np.ndarray:
+    """The empty bore profile (3, 0): every factor 1."""
+    return np.zeros((3, 0))
+
+
 @dataclass
 class FormFit:
     """One form fitted to one seal's records."""
@@ -136,15 +163,26 @@ class FormFit:
     planes: np.ndarray  #: (2, 4, 3) friction planes, the model's layout
     sigma0: float  #: LuGre stiffness [N/m] (form lugre)
     slips: np.ndarray  #: Maxwell-slip slip displacements [m] (form maxwell_slip)
+    #: bore profile (3, K): knots [m, the records' position], exit and entry factors
+    profile: np.ndarray = field(default_factory=no_profile)
 
-    def predict(self, prep: Prepared) -> np.ndarray:
-        """Modelled friction [N] along a prepared record."""
-        return prescribed_friction(_KERNEL_FORM[self.form], self.planes, prep.v, prep.p1,
-                                   prep.p2, prep.record.dt, self.sigma0, 0.0, self.slips)
+    def predict(self, prep: Prepared, profile: np.ndarray | None = None) -> np.ndarray:
+        """Modelled friction [N] along a prepared record (with ``profile`` instead of the
+        fit's own if given)."""
+        return prescribed_friction(_KERNEL_FORM[self.form], self.planes,
+                                   self.profile if profile is None else profile, prep.v,
+                                   prep.record.x, prep.p1, prep.p2, prep.record.dt,
+                                   self.sigma0, 0.0, self.slips)
 
-    def params(self, base: ModelParams) -> ModelParams:
-        """``base`` with this fit's planes and, for a dynamic form, its friction_dynamics."""
+    def params(self, base: ModelParams, centre: float = 0.0) -> ModelParams:
+        """``base`` with this fit's planes, its bore profile (knots shifted by ``-centre``
+        [m]: the records' position that becomes the model's y = 0) and, for a dynamic form,
+        its friction_dynamics."""
         changes: dict[str, Any] = {}
+        if self.profile.shape[1]:
+            changes["friction.profile.position"] = [float(k - centre) for k in self.profile[0]]
+            changes["friction.profile.exit"] = [float(f) for f in self.profile[1]]
+            changes["friction.profile.entry"] = [float(f) for f in self.profile[2]]
         for phase, i in (("entry", 0), ("exit", 1)):
             for q, row in (("breakaway", 0), ("stribeck_velocity", 1), ("viscous", 2),
                            ("coulomb", 3)):
@@ -244,16 +282,17 @@ def planes_of(values: dict[str, float]) -> np.ndarray:
     return planes
 
 
-def _build(form: str, theta: np.ndarray) -> FormFit:
-    """The fit of parameter vector ``theta`` (dynamic parameters as log10)."""
+def _build(form: str, theta: np.ndarray, profile: np.ndarray | None = None) -> FormFit:
+    """The fit of parameter vector ``theta`` (dynamic parameters as log10) and ``profile``."""
     values = dict(zip(_names(form), (float(x) for x in theta)))
     for name, _, _ in _DYNAMIC.get(form, ()):
         values[name] = 10.0 ** values[name]
-    return _from_values(form, values)
+    return _from_values(form, values, profile)
 
 
-def _from_values(form: str, values: dict[str, float]) -> FormFit:
-    """The fit of named parameters (SI units)."""
+def _from_values(form: str, values: dict[str, float],
+                 profile: np.ndarray | None = None) -> FormFit:
+    """The fit of named parameters (SI units) and a bore profile (none if None)."""
     if form == "coulomb_viscous":
         values["exit.ratio"] = values["entry.ratio"] = 1.0
     slips = np.zeros(0)
@@ -261,7 +300,8 @@ def _from_values(form: str, values: dict[str, float]) -> FormFit:
         slips = element_slips(values["presliding_displacement"], values["presliding_spread"],
                               ELEMENTS)
     return FormFit(form=form, values=values, planes=planes_of(values),
-                   sigma0=values.get("bristle_stiffness", 0.0), slips=slips)
+                   sigma0=values.get("bristle_stiffness", 0.0), slips=slips,
+                   profile=no_profile() if profile is None else profile)
 
 
 def _start(form: str, preps: list[Prepared], attempt: int) -> np.ndarray:
@@ -280,13 +320,16 @@ def _start(form: str, preps: list[Prepared], attempt: int) -> np.ndarray:
 
 
 def fit_form(form: str, preps: list[Prepared], what: str, attempts: int = 3,
-             start: FormFit | None = None, max_nfev: int = 200) -> FormFit:
+             start: FormFit | None = None, max_nfev: int = 200,
+             profile: bool = True) -> FormFit:
     """Fit ``form`` to the training samples of one seal's prepared records (least squares on
     the friction [N]); a start outside the bounds is clipped into them, and a failed or
     non-finite fit retried from another start. The first attempt starts from ``start`` if
-    given (the seal's records' fits combined), the others from the data's levels.
-    DatasetError naming the seal's records if no attempt succeeds (``what`` names them: the
-    record or the seal)."""
+    given (the seal's records' fits combined), the others from the data's levels. With
+    ``profile``, a form of :data:`PROFILE_FORMS` then gets a bore profile
+    (:func:`fit_profile`), its other parameters are refitted with the profile held, and the
+    profile is fitted again. DatasetError naming the seal's records if no attempt succeeds
+    (``what`` names them: the record or the seal)."""
     lo, hi = _bounds(form)
     free = np.ones(lo.size, dtype=bool)
     pressures = [p.pressure * 1e-5 for p in preps if p.train.any()]
@@ -314,26 +357,124 @@ def fit_form(form: str, preps: list[Prepared], what: str, attempts: int = 3,
         else:
             held = _start(form, trained, attempt)
         held = np.clip(held, lo, hi)
-
-        def residual(x: np.ndarray, held: np.ndarray = held) -> np.ndarray:
-            theta = held.copy()
-            theta[free] = x
-            fit = _build(form, theta)
-            return np.concatenate([(fit.predict(p) - p.friction)[p.train] for p in trained])
-
-        try:
-            sol = optimize.least_squares(residual, held[free], bounds=(lo[free], hi[free]),
-                                         x_scale="jac", max_nfev=max_nfev)
-        except (ValueError, FloatingPointError) as exc:
-            error = str(exc)
+        theta, error = _least_squares(form, trained, held, free, lo, hi, max_nfev)
+        if theta is None:
             continue
-        # Status 0 (evaluations used up) keeps the best point reached: still a fit.
-        if sol.status >= 0 and np.all(np.isfinite(sol.fun)):
-            theta = held.copy()
-            theta[free] = sol.x
-            return _build(form, theta)
-        error = sol.message if sol.status < 0 else "non-finite residuals"
+        fit = _build(form, theta)
+        if not profile or form not in PROFILE_FORMS:
+            return fit
+        shape = fit_profile(fit, trained)
+        refit, _ = _least_squares(form, trained, theta, free, lo, hi, PROFILE_NFEV, shape)
+        fit = _build(form, theta if refit is None else refit, shape)
+        return _normalised(_build(form, theta if refit is None else refit,
+                                  fit_profile(fit, trained)))
     raise DatasetError(f"{what}: the {form} friction fit failed: {error}")
+
+
+def _least_squares(form: str, trained: list[Prepared], held: np.ndarray, free: np.ndarray,
+                   lo: np.ndarray, hi: np.ndarray, max_nfev: int,
+                   profile: np.ndarray | None = None) -> tuple[np.ndarray | None, str]:
+    """The parameter vector fitted from ``held`` (its ``free`` entries within ``lo``-``hi``,
+    the others held) with the bore ``profile`` held, or None and why it failed."""
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        theta = held.copy()
+        theta[free] = x
+        fit = _build(form, theta, profile)
+        return np.concatenate([(fit.predict(p) - p.friction)[p.train] for p in trained])
+
+    try:
+        sol = optimize.least_squares(residual, np.clip(held[free], lo[free], hi[free]),
+                                     bounds=(lo[free], hi[free]), x_scale="jac",
+                                     max_nfev=max_nfev)
+    except (ValueError, FloatingPointError) as exc:
+        return None, str(exc)
+    # Status 0 (evaluations used up) keeps the best point reached: still a fit.
+    if sol.status >= 0 and np.all(np.isfinite(sol.fun)):
+        theta = held.copy()
+        theta[free] = sol.x
+        return theta, ""
+    return None, sol.message if sol.status < 0 else "non-finite residuals"
+
+
+def passes(preps: list[Prepared]) -> tuple[int, int]:
+    """Passes (exit, entry) of the training samples of ``preps``: runs of moving samples in
+    one direction, a run ending where the direction changes."""
+    counts = [0, 0]
+    for p in preps:
+        sign = np.sign(p.v[p.train])
+        if sign.size:
+            starts = np.concatenate([[0], np.flatnonzero(sign[1:] != sign[:-1]) + 1])
+            counts[0] += int(np.sum(sign[starts] > 0))
+            counts[1] += int(np.sum(sign[starts] < 0))
+    return counts[0], counts[1]
+
+
+def _normalised(fit: FormFit) -> FormFit:
+    """``fit`` with each direction's profile factors divided by their mean over the knots and
+    its level (a and b) multiplied by it: the same friction, the level the mean over the
+    positions travelled and the profile a ripple about 1."""
+    if not fit.profile.shape[1]:
+        return fit
+    values, profile = dict(fit.values), fit.profile.copy()
+    for row, direction in ((1, "exit"), (2, "entry")):
+        mean = float(np.mean(profile[row]))
+        profile[row] = np.clip(profile[row] / mean, PROFILE_LOW, PROFILE_HIGH)
+        values[f"{direction}.level"] *= mean
+        values[f"{direction}.slope"] *= mean
+    return _from_values(fit.form, values, profile)
+
+
+def _hat(x: np.ndarray, knots: np.ndarray) -> np.ndarray:
+    """(x.size, K) weights of linear interpolation between ``knots`` at ``x`` (held beyond
+    the ends), as :func:`~jetpipe_ros.model.friction.level_factors` interpolates."""
+    xc = np.clip(x, knots[0], knots[-1])
+    j = np.clip(np.searchsorted(knots, xc) - 1, 0, knots.size - 2)
+    w = (xc - knots[j]) / (knots[j + 1] - knots[j])
+    out = np.zeros((x.size, knots.size))
+    out[np.arange(x.size), j] = 1.0 - w
+    out[np.arange(x.size), j + 1] = w
+    return out
+
+
+def fit_profile(fit: FormFit, preps: list[Prepared], spacing: float = KNOT_SPACING,
+                prior: float = PROFILE_PRIOR, settled: float = SETTLED) -> np.ndarray:
+    """The bore profile (3, K) of ``fit``'s form over the training samples of ``preps`` at
+    least ``settled`` [m] past the last reversal (or before the first), the other parameters
+    held: knots about ``spacing`` [m] apart over the positions travelled
+    (at most :data:`~jetpipe_ros.model.params.MAX_KNOTS`), each direction's factors by least
+    squares on the friction [N] with a ridge of ``prior`` samples at the direction's level
+    pulling each factor to 1, clipped to the parameters' range. Along a prescribed motion the
+    form's friction is F = f_exit(x) E + f_entry(x) N + R (``fit``'s prediction with one
+    direction's level only, and with neither), so the factors are linear. No profile (3, 0)
+    when the records travel less than two knot spacings, or pass fewer than
+    :data:`MIN_PASSES` times each way."""
+    if min(passes(preps)) < MIN_PASSES:
+        return no_profile()
+    masks = [p.train & ~(np.abs(since_reversal(p.record.x, p.v)) < settled) for p in preps]
+    xs = np.concatenate([p.record.x[m] for p, m in zip(preps, masks)])
+    if xs.size < 2 or np.ptp(xs) < 2.0 * spacing:
+        return no_profile()
+    knots = np.linspace(xs.min(), xs.max(),
+                        min(MAX_KNOTS, int(round(np.ptp(xs) / spacing)) + 1))
+    one = np.array([[xs.min()], [1.0], [0.0]])
+    rows, rhs = [], []
+    levels = np.zeros(2)
+    for p, m in zip(preps, masks):
+        exit_only, entry_only, neither = (fit.predict(p, one), fit.predict(p, one[[0, 2, 1]]),
+                                          fit.predict(p, one[[0, 2, 2]]))
+        basis = _hat(p.record.x[m], knots)
+        e, n, r = (exit_only - neither)[m], (entry_only - neither)[m], neither[m]
+        rows.append(np.hstack([e[:, None] * basis, n[:, None] * basis]))
+        rhs.append(p.friction[m] - e - n - r)
+        levels += [np.sum(np.abs(e)), np.sum(np.abs(n))]
+    levels /= xs.size
+    k = knots.size
+    ridge = math.sqrt(prior) * np.diag(np.repeat(np.maximum(levels, 1e-9), k))
+    delta = np.linalg.lstsq(np.vstack([*rows, ridge]),
+                            np.concatenate([*rhs, np.zeros(2 * k)]), rcond=None)[0]
+    factors = np.clip(1.0 + delta, PROFILE_LOW, PROFILE_HIGH)
+    return np.vstack([knots, factors[:k], factors[k:]])
 
 
 def scores(measured: np.ndarray, model: np.ndarray, v: np.ndarray) -> dict[str, float]:
@@ -388,7 +529,7 @@ def combine(form: str, fits: list[FormFit], preps: list[Prepared]) -> FormFit:
     its :attr:`Prepared.pressure`: the paper's route from tests to planes, Sec. 4.2.3): per
     direction a line of the level over the pressure (its slope 0 when the pressures span less
     than :data:`MIN_PRESSURE_SPAN`) through the records that move that way, the other
-    parameters' medians over them."""
+    parameters' medians over them; the bore profile of a single record's fit."""
     values = {}
     for name in fits[0].values:
         direction = name.split(".")[0]
@@ -405,7 +546,8 @@ def combine(form: str, fits: list[FormFit], preps: list[Prepared]) -> FormFit:
         else:
             slope, level = 0.0, float(np.mean(levels))
         values[f"{direction}.level"], values[f"{direction}.slope"] = float(level), float(slope)
-    return _from_values(form, values)
+    # One record: its profile; several: the joint fit that refines this one fits theirs.
+    return _from_values(form, values, fits[0].profile if len(fits) == 1 else None)
 
 
 @dataclass
@@ -430,9 +572,10 @@ def identify_seal(seal: str, preps: list[Prepared], split: float = 0.5) -> SealR
     samples with its own fit (a ``role: holdout`` record with the seal's), and select a form
     (:func:`select`)."""
     files = ", ".join(p.record.file for p in preps)
+    who = f"seal {seal}: " if seal else ""
     trained = [p for p in preps if p.train.any()]
     if not trained:
-        raise DatasetError(f"{seal}: no moving training samples in {files} (all role: "
+        raise DatasetError(f"{who}no moving training samples in {files} (all role: "
                            f"holdout, or the rod never moves faster than "
                            f"{MIN_SPEED * 1e3:g} mm/s)")
     per_record: dict[str, dict[str, FormFit]] = {}
@@ -453,7 +596,7 @@ def identify_seal(seal: str, preps: list[Prepared], split: float = 0.5) -> SealR
                 judged[form][p.record.name] = scores(
                     p.friction[p.test], fit.predict(p)[p.test], p.v[p.test])
     if not judged[FORMS[0]]:
-        raise DatasetError(f"{seal}: no held-out moving samples in {files} (split {split:g})")
+        raise DatasetError(f"{who}no held-out moving samples in {files} (split {split:g})")
     return SealResult(seal=seal, preps=preps, per_record=per_record, seal_fits=seal_fits,
                       scores=judged, selected=select(judged, preps))
 

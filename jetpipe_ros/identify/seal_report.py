@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from jetpipe_ros.dataset.friction_rig import RigRecord
 from jetpipe_ros.figures import png_img, pyplot
 from jetpipe_ros.identify.seal import (FORMS, Prepared, SealResult, measured_presliding,
                                        reverses, since_reversal)
@@ -50,15 +51,29 @@ def to_json(results: list[SealResult], split: float, notes: list[str]) -> dict[s
                     "model": res.model_of(res.selected, prep).presliding,
                     "measured": [float(np.min(measured)), float(np.median(measured)),
                                  float(np.max(measured))] if measured.size else None}}
+        profile = res.seal_fits[res.selected].profile
         seals[res.seal or "seal"] = {
             "selected": res.selected,
             "parameters": {form: res.seal_fits[form].values for form in FORMS},
+            "profile": {"position_m": profile[0].tolist(), "exit": profile[1].tolist(),
+                        "entry": profile[2].tolist(), "centre_m": centre(res)},
             "records": records}
     return {"schema": SCHEMA, "split": split,
             "metric": "on held-out moving samples: NRMSE = RMS error / range of the measured "
                       "friction; R^2; R^2 within each direction (exit v > 0, entry v < 0) and "
                       "pooled (r2_within)",
             "summary": summary_table(results), "seals": seals, "notes": notes}
+
+
+def centre(res: SealResult) -> float:
+    """The records' position [m] that becomes the model's y = 0 in ``friction.yaml``: the
+    middle of the positions a rig's records travel (a rig's position sensor has its own zero),
+    0 for the actuator's own tests (already the model's y)."""
+    rigs = [p for p in res.preps if isinstance(p.record, RigRecord)]
+    if not rigs:
+        return 0.0
+    x = np.concatenate([p.record.x[p.train | p.test] for p in rigs])
+    return float(0.5 * (x.min() + x.max())) if x.size else 0.0
 
 
 def prediction_csv(res: SealResult, prep: Prepared) -> str:
@@ -75,27 +90,32 @@ def prediction_csv(res: SealResult, prep: Prepared) -> str:
 
 
 def loop_figure(res: SealResult, preps: list[Prepared]) -> Any:
-    """Measured and modelled friction against velocity and against the displacement since
-    the last reversal, one row per record (pressure), held-out moving samples."""
+    """Measured and modelled friction against velocity, against the displacement since the
+    last reversal and against the position (the bore profile), one row per record (pressure),
+    held-out moving samples."""
     plt = pyplot()
 
-    fig, axes = plt.subplots(len(preps), 2, figsize=(10, 2.6 * len(preps)), squeeze=False)
+    fig, axes = plt.subplots(len(preps), 3, figsize=(15, 2.6 * len(preps)), squeeze=False)
     for row, prep in zip(axes, preps):
         m = prep.test
         since = since_reversal(prep.record.x, prep.v)
         label = f"{prep.record.name} ({prep.describe_pressure()})"
         row[0].plot(prep.v[m] * 1e3, prep.friction[m], ".", ms=2, color="0.6", label="measured")
         row[1].plot(since[m] * 1e3, prep.friction[m], ".", ms=2, color="0.6", label="measured")
+        x = prep.record.x * 1e3
+        row[2].plot(x[m], prep.friction[m], ".", ms=2, color="0.6", label="measured")
         for form, colour in {"static": "tab:blue", res.selected: "tab:red"}.items():
             model = res.model_of(form, prep).predict(prep)
             row[0].plot(prep.v[m] * 1e3, model[m], ".", ms=1.5, color=colour, label=form)
             row[1].plot(since[m] * 1e3, model[m], ".", ms=1.5, color=colour, label=form)
+            row[2].plot(x[m], model[m], ".", ms=1.5, color=colour, label=form)
         if not reverses(prep):
             row[1].text(0.5, 0.5, "no reversal in this record:\npre-sliding cannot show",
                         transform=row[1].transAxes, ha="center", va="center", fontsize=9)
         row[0].set_xlabel("velocity [mm/s]")
         row[1].set_xlabel("displacement since reversal [mm] (signed as the motion)")
         row[1].set_xlim(-3, 3)
+        row[2].set_xlabel("position [mm] (the record's)")
         for ax in row:
             ax.set_ylabel("friction [N]")
             ax.set_title(label, fontsize=9)
@@ -131,9 +151,14 @@ def html_report(results: list[SealResult], doc: dict[str, Any]) -> str:
                              if s else "<td>-</td>")
             parts.append(f"<tr><td>{html.escape(prep.record.name)}</td>{''.join(cells)}</tr>")
         parts.append("</table><p>NRMSE / R^2 within direction, held-out moving samples.</p>")
-        values = res.seal_fits[res.selected].values
-        parts.append("<pre>" + html.escape("\n".join(f"{k}: {v:.5g}" for k, v in
-                                                     values.items())) + "</pre>")
+        fit = res.seal_fits[res.selected]
+        lines = [f"{k}: {v:.5g}" for k, v in fit.values.items()]
+        if fit.profile.shape[1]:
+            lines += [f"bore profile: {fit.profile.shape[1]} knots over "
+                      f"{fit.profile[0, 0] * 1e3:.1f}-{fit.profile[0, -1] * 1e3:.1f} mm, "
+                      f"factors exit {fit.profile[1].min():.2f}-{fit.profile[1].max():.2f}, "
+                      f"entry {fit.profile[2].min():.2f}-{fit.profile[2].max():.2f}"]
+        parts.append("<pre>" + html.escape("\n".join(lines)) + "</pre>")
         parts.append(png_img(loop_figure(res, res.preps), dpi=80))
     parts.append("<h2>Notes</h2><pre>" + html.escape("\n".join(doc["notes"])) + "</pre>")
     parts.append("</body></html>")
@@ -143,6 +168,10 @@ def html_report(results: list[SealResult], doc: dict[str, Any]) -> str:
 def params_yaml(res: SealResult, base: ModelParams) -> str:
     """The seal's selected fit as a parameter file (ROS params layout)."""
     fit = res.seal_fits[res.selected]
+    shift = centre(res)
     header = (f"# jetpipe friction: seal {res.seal or '(unnamed)'}, form {res.selected}, "
               f"fitted on a friction rig (planes over the rig's pressure; see docs/friction.md)\n")
-    return header + fit.params(base).to_ros_yaml(only_changed=True)
+    if fit.profile.shape[1]:
+        header += (f"# bore profile: the records' position {shift * 1e3:.2f} mm is the model's "
+                   f"y = 0\n")
+    return header + fit.params(base, shift).to_ros_yaml(only_changed=True)

@@ -27,6 +27,15 @@ REGULATOR_KEYS = ("chamber.regulated", "chamber.initial_pressure_1",
                   "chamber.initial_pressure_2", "mechanics.initial_position")
 
 
+def profile_array(p: Mapping[str, Any]) -> np.ndarray:
+    """The bore profile (3, K) of validated parameters: knots [m], exit and entry factors;
+    (3, 0) when every factor is 1 (no profile)."""
+    rows = [p[f"friction.profile.{q}"] for q in ("position", "exit", "entry")]
+    if all(f == 1.0 for f in rows[1] + rows[2]):
+        return np.zeros((3, 0))
+    return np.array(rows, dtype=float)
+
+
 def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
     """Compile validated parameters (nominal values plus enabled effects) for the kernel."""
 
@@ -87,6 +96,7 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
         mass=effect("moving_mass", "mass", p["mechanics.mass"]),
         y_max=0.5 * p["mechanics.stroke"], locked=p["mechanics.locked"],
         regulated=p["chamber.regulated"], planes=planes,
+        profile=profile_array(p),
         friction_form=friction_form, sigma0=p["effects.friction_dynamics.bristle_stiffness"],
         sigma1=p["effects.friction_dynamics.bristle_damping"],
         slips=element_slips(p["effects.friction_dynamics.presliding_displacement"],

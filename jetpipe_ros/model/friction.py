@@ -9,6 +9,12 @@ are evaluated at the mean pressure, and each parameter is kept on its physical s
 breakaway F_S may lie below the Coulomb level F_C (no Stribeck dip: friction rising with speed,
 as real seals show at low speed); it is used as fitted.
 
+A seal's level also varies along the bore (its diameter and finish vary along a printed or
+honed bore, and the seal's squeeze with them): an optional **bore profile** scales the Stribeck
+curve of each direction by a factor that varies with the piston position, linearly between knots
+and held beyond them (:func:`level_factors`); without one the factor is 1. The viscous term is
+not scaled (it is the lubricant film's shear, not the seal's contact force).
+
 The dynamic forms replace Eq. 15's stick logic with a state that carries the friction through a
 reversal (pre-sliding) and that the kernel and the friction-rig fit advance with the same
 functions (:func:`lugre_step`, :func:`maxwell_slip_step`, :func:`prescribed_friction`):
@@ -86,6 +92,27 @@ def friction_parameters(planes: np.ndarray, direction: float, p1: float, p2: flo
 
 
 @njit(cache=True, error_model="numpy")
+def level_factors(profile: np.ndarray, y: float) -> tuple[float, float]:
+    """Factors (exit, entry) on the Stribeck levels at piston position ``y`` [m] of a bore
+    profile (3, K): row 0 the knots' positions [m], increasing, rows 1 and 2 the exit and entry
+    factors there; linear between the knots, held beyond them. K = 0: no profile, (1, 1)."""
+    if profile.shape[1] == 0:
+        return 1.0, 1.0
+    return np.interp(y, profile[0], profile[1]), np.interp(y, profile[0], profile[2])
+
+
+@njit(cache=True, error_model="numpy")
+def scaled_parameters(planes: np.ndarray, profile: np.ndarray, direction: float, y: float,
+                      p1: float, p2: float) -> tuple[float, float, float, float]:
+    """:func:`friction_parameters` with F_S and F_C scaled by the bore profile's factor of
+    ``direction`` at piston position ``y`` [m] (:func:`level_factors`)."""
+    f_s, v_s, f_v, f_c = friction_parameters(planes, direction, p1, p2)
+    exit_factor, entry_factor = level_factors(profile, y)
+    factor = exit_factor if direction > 0.0 else entry_factor
+    return factor * f_s, v_s, f_v, factor * f_c
+
+
+@njit(cache=True, error_model="numpy")
 def stribeck_force(v: float | np.ndarray, f_s: float, v_s: float, f_c: float) -> float | np.ndarray:
     """Eq. 18 without the viscous term: F_C + (F_S - F_C) exp(-(v/v_s)^2) [N] at velocity
     ``v`` [m/s] (a float, or an array). The kernel adds the viscous term F_v v implicitly."""
@@ -139,14 +166,15 @@ def presliding_displacement(slips: np.ndarray, fraction: float = 0.9) -> float:
 
 
 @njit(cache=True, error_model="numpy")
-def sliding_levels(planes: np.ndarray, v: float, p1: float, p2: float
-                   ) -> tuple[float, float, float, float]:
+def sliding_levels(planes: np.ndarray, profile: np.ndarray, v: float, y: float, p1: float,
+                   p2: float) -> tuple[float, float, float, float]:
     """Magnitudes of the Stribeck curve (Eq. 18 without its viscous term) [N] of the exit and
-    entry directions at velocity ``v`` [m/s] and pressures ``p1``, ``p2`` [Pa], and the
-    viscous coefficients F_v [N s/m] of both: (g_exit, g_entry, f_v_exit, f_v_entry)."""
-    f_s, v_s, f_v_exit, f_c = friction_parameters(planes, 1.0, p1, p2)
+    entry directions at velocity ``v`` [m/s], piston position ``y`` [m] (the bore ``profile``,
+    :func:`level_factors`) and pressures ``p1``, ``p2`` [Pa], and the viscous coefficients
+    F_v [N s/m] of both: (g_exit, g_entry, f_v_exit, f_v_entry)."""
+    f_s, v_s, f_v_exit, f_c = scaled_parameters(planes, profile, 1.0, y, p1, p2)
     g_exit = abs(stribeck_force(v, f_s, v_s, f_c))
-    f_s, v_s, f_v_entry, f_c = friction_parameters(planes, -1.0, p1, p2)
+    f_s, v_s, f_v_entry, f_c = scaled_parameters(planes, profile, -1.0, y, p1, p2)
     g_entry = abs(stribeck_force(v, f_s, v_s, f_c))
     return g_exit, g_entry, f_v_exit, f_v_entry
 
@@ -181,11 +209,12 @@ def maxwell_slip_force(s: np.ndarray, g_exit: float, g_entry: float) -> float:
 
 
 @njit(cache=True, error_model="numpy")
-def prescribed_friction(form: int, planes: np.ndarray, v: np.ndarray, p1: np.ndarray,
-                        p2: np.ndarray, h: float, sigma0: float, sigma1: float,
-                        slips: np.ndarray) -> np.ndarray:
+def prescribed_friction(form: int, planes: np.ndarray, profile: np.ndarray, v: np.ndarray,
+                        y: np.ndarray, p1: np.ndarray, p2: np.ndarray, h: float, sigma0: float,
+                        sigma1: float, slips: np.ndarray) -> np.ndarray:
     """Friction force [N] along a prescribed motion (a friction rig drives the rod): velocity
-    ``v`` [m/s] and pressures ``p1``, ``p2`` [Pa] sampled every ``h`` [s]; the dynamic
+    ``v`` [m/s], position ``y`` [m] (for the bore ``profile``, :func:`level_factors`) and
+    pressures ``p1``, ``p2`` [Pa] sampled every ``h`` [s]; the dynamic
     forms' state starts relaxed and is integrated from the velocity. ``form`` is
     :data:`STATIC` (Eq. 18 in the direction of ``v``; 0 where v = 0), :data:`LUGRE`
     (``sigma0`` [N/m], ``sigma1`` [N s/m]) or :data:`MAXWELL_SLIP` (``slips`` [m])."""
@@ -194,7 +223,8 @@ def prescribed_friction(form: int, planes: np.ndarray, v: np.ndarray, p1: np.nda
     z = 0.0
     s = np.zeros(slips.shape[0])
     for k in range(n):
-        g_exit, g_entry, f_v_exit, f_v_entry = sliding_levels(planes, v[k], p1[k], p2[k])
+        g_exit, g_entry, f_v_exit, f_v_entry = sliding_levels(planes, profile, v[k], y[k],
+                                                              p1[k], p2[k])
         f_v = f_v_exit if v[k] > 0.0 else f_v_entry
         if form == LUGRE:
             d = v[k] if v[k] != 0.0 else z

@@ -163,6 +163,22 @@ for _phase, _planes in FRICTION_PLANES.items():
             f"{_phase} phase {_qty.replace('_', ' ')} plane c0 + c1 p1 + c2 p2 (p in bar)",
             FRICTION_UNITS[_qty], length=3))
 
+# The bore profile of the friction level (model/friction.py, level_factors): factors on each
+# direction's Stribeck curve at knots along the piston position; one knot at factor 1 = none.
+_BASE += [
+    _p("friction.profile.position", [0.0], "Bore profile: the knots' piston positions y, "
+       "increasing (as many as the factors)", "m"),
+    _p("friction.profile.exit", [1.0], "Bore profile: factor on the exit phase's Stribeck "
+       "level (F_S and F_C) at each knot, linear between knots and held beyond them", ""),
+    _p("friction.profile.entry", [1.0], "Bore profile: factor on the entry phase's Stribeck "
+       "level (F_S and F_C) at each knot", ""),
+]
+#: Factors of the bore profile lie in [PROFILE_LOW, PROFILE_HIGH] (a level the seal's squeeze
+#: changes by more than this along one bore is not a profile but another seal).
+PROFILE_LOW, PROFILE_HIGH = 0.2, 5.0
+#: Most knots a bore profile holds.
+MAX_KNOTS = 200
+
 #: Parameters of each effect (besides ``effects.<name>.enabled``). Typical sizes: docs/effects.md.
 _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
     "valve_delay": [_p("delay", 0.002, "Extra transport delay", "s", 0.0, 0.05)],
@@ -299,8 +315,12 @@ def check_value(spec: ParamSpec, value: Any, where: str = "") -> Any:
             raise ParameterError(f"{at}parameter {name} must be one of {spec.choices}, "
                                  f"got {value!r}")
         return value
-    # list of floats
-    if not isinstance(value, (list, tuple)) or len(value) != spec.length:
+    # list of floats: of spec.length, or of 1 to MAX_KNOTS when the spec has no length
+    if spec.length is None:
+        if not isinstance(value, (list, tuple)) or not 1 <= len(value) <= MAX_KNOTS:
+            raise ParameterError(f"{at}parameter {name} must be a list of 1 to {MAX_KNOTS} "
+                                 f"numbers, got {value!r}")
+    elif not isinstance(value, (list, tuple)) or len(value) != spec.length:
         raise ParameterError(f"{at}parameter {name} must be a list of {spec.length} numbers, "
                              f"got {value!r}")
     out = []
@@ -355,6 +375,7 @@ class ModelParams(Mapping[str, Any]):
                 raise ParameterError(_unknown_message(name, where))
             self._values[name] = check_value(spec, value, where)
         _check_geometry(self._values, where)
+        _check_profile(self._values, where)
 
     def __getitem__(self, name: str) -> Any:
         return self._values[name]
@@ -425,6 +446,26 @@ def _check_geometry(values: Mapping[str, Any], where: str) -> None:
                 f"piston sweeps from the centre to the end stop (chamber.piston_area * "
                 f"mechanics.stroke / 2 = {values['chamber.dead_volume_' + str(i)] - volume:g} "
                 f"m^3): chamber {i} would vanish")
+
+
+def _check_profile(values: Mapping[str, Any], where: str) -> None:
+    """The bore profile's lists are equally long, its knots increasing, its factors in
+    [PROFILE_LOW, PROFILE_HIGH]."""
+    at = f"{where}: " if where else ""
+    position = values["friction.profile.position"]
+    for phase in ("exit", "entry"):
+        factors = values[f"friction.profile.{phase}"]
+        if len(factors) != len(position):
+            raise ParameterError(f"{at}parameter friction.profile.{phase} has {len(factors)} "
+                                 f"factors for {len(position)} knots in "
+                                 f"friction.profile.position")
+        bad = [f for f in factors if not PROFILE_LOW <= f <= PROFILE_HIGH]
+        if bad:
+            raise ParameterError(f"{at}parameter friction.profile.{phase} = {bad[0]:g} is out "
+                                 f"of range [{PROFILE_LOW:g}, {PROFILE_HIGH:g}]")
+    if any(b <= a for a, b in zip(position, position[1:])):
+        raise ParameterError(f"{at}parameter friction.profile.position must be increasing, "
+                             f"got {position!r}")
 
 
 def _unknown_message(name: str, where: str) -> str:

@@ -52,6 +52,8 @@ def descriptor(spec: ParamSpec, read_only: bool) -> ParameterDescriptor:
         desc.additional_constraints = f"one of: {', '.join(spec.choices)}"
     if spec.length is not None:
         desc.additional_constraints = f"exactly {spec.length} numbers"
+    elif spec.kind is list:
+        desc.additional_constraints = "1 or more numbers"
     if spec.low is not None and spec.high is not None:
         if spec.kind is float:
             desc.floating_point_range = [FloatingPointRange(
