@@ -100,7 +100,7 @@ def test_visibility_is_graded_against_the_sensors_noise(tmp_path):
         "experiments:\n  - {file: charge.csv, piston: locked}\n")
     bench = PlantSpec()
     truth = bench.with_effect("sensor_second_order", natural_frequency=1e5, damping_ratio=1.0,
-                              gain_error=0.0, offset_1=2e3, offset_2=0.0)
+                              nonlinearity=0.0, offset_1=2e3, offset_2=0.0)
     assert selfcheck.signature(truth, bench, tmp_path) == pytest.approx(4.0, rel=1e-3)
     assert selfcheck.signature(bench, bench, tmp_path) == 0.0
 

@@ -100,7 +100,7 @@ PLANT_PAIRS = (("wall_heat_exchange", "sensor_second_order"), ("transport_delay"
 WEAK: dict[str, Callable[[np.random.Generator], dict]] = {
     "sensor_second_order": lambda r: {
         "natural_frequency": math.exp(r.uniform(math.log(60.0), math.log(100.0))),
-        "damping_ratio": float(r.uniform(0.7, 1.0)), "gain_error": 0.0,
+        "damping_ratio": float(r.uniform(0.7, 1.0)), "nonlinearity": 0.0,
         "offset_1": float(r.choice([-1.0, 1.0]) * r.uniform(1e3, 3e3)),
         "offset_2": float(r.choice([-1.0, 1.0]) * r.uniform(1e3, 3e3))},
     "iso6358_leak": lambda r: {"cross_conductance": 0.0,
