@@ -138,9 +138,10 @@ def _plant_dataset(root, spec, seed):
 
 
 def test_small_selfcheck_scores_the_diagnosis(tmp_path, monkeypatch):
-    """A delay in the plant's form (the chain advanced exactly with the command switching
-    inside a sub-step, its own code apart from the model's), found and its size recovered, by a
-    self-check run in this process."""
+    """A delay in the plant's form (a line between valve and chambers: the flow arrives tau
+    late, the valve's port sees the pressure tau late; the candidate delays the command), found
+    by a self-check run in this process, its fitted delay between the line's tau (the command's
+    path) and 2 tau (the pressure's round trip)."""
     written = []
 
     def build(truth, root, seed):
@@ -156,8 +157,8 @@ def test_small_selfcheck_scores_the_diagnosis(tmp_path, monkeypatch):
     (r,) = plant["results"]
     assert r["verdict"] == "valve_delay" and r["correct"]
     assert plant["top1_accuracy"] == 1.0 and plant["confusion"]["valve_delay"]["valve_delay"] == 1
-    assert r["params"]["delay"] == pytest.approx(r["effects"]["transport_delay"]["delay"],
-                                                 abs=3e-4)
+    tau = r["effects"]["transport_delay"]["delay"]
+    assert tau <= r["params"]["delay"] <= 2 * tau
     assert len(lines) == 1 and "valve_delay" in lines[0]
     md = (tmp_path / "plant" / "selfcheck.md").read_text()
     assert md.startswith("# jetpipe selfcheck: 1 cases") and "from the plant" in md
