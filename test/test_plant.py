@@ -783,3 +783,20 @@ def test_bristles_do_not_load_up_against_an_end_stop():
                                           breakaway_fraction=0.86), u)
     assert np.max(np.abs(lugre.y)) == pytest.approx(0.025)  # it reached the stop
     assert np.max(np.abs(ep.y - lugre.y)) < 1e-4
+
+
+def test_flow_map_shape_departs_within_the_fit_error_and_keeps_the_nulls():
+    """The bench's flow map of another shape: on the map's range (u -2.8 to 3 V, 1-10 bar) it
+    departs from Eq. 8 by at most its amplitude, within the paper's 0.5 g/s, by about half of it
+    RMS, and not at all at u = 0 (the nulls stay)."""
+    amplitude = 4e-4
+    u, p = np.meshgrid(np.linspace(-2.8, 3.0, 59), np.linspace(1e5, 1e6, 46))
+    nominal = np.vectorize(lambda a, b: valve_inflow(a, b, 1e6, 1.0, 1.0, 0.0))(u, p)
+    shaped = np.vectorize(lambda a, b: valve_inflow(a, b, 1e6, 1.0, 1.0, 0.0, amplitude, 0.7))(
+        u, p)
+    diff = (shaped - nominal)[p > 1e5]  # the atmosphere's row: no outflow either way
+    assert np.abs(diff).max() <= amplitude + 1e-12 and amplitude <= 5e-4
+    assert 0.35 * amplitude < np.sqrt(np.mean(diff ** 2)) < 0.55 * amplitude
+    for pressure in np.linspace(1.5e5, 9.5e5, 9):
+        assert valve_inflow(0.0, pressure, 1e6, 1.0, 1.0, 0.0, amplitude, 0.7) == \
+            valve_inflow(0.0, pressure, 1e6, 1.0, 1.0, 0.0)

@@ -199,3 +199,18 @@ def test_selfcheck_datasets_are_the_default_campaign(tmp_path):
                                                   for e in default_campaign().experiments]
         assert prep.seconds("holdout") >= 10.0 and prep.seconds("train") >= 60.0
         assert prep.noise["p1"] == pytest.approx(500.0, rel=0.1)
+
+
+def test_flow_map_shape_moves_only_the_benches():
+    """``--flow-map-shape`` gives every plant bench a flow map departing from Eq. 8, drawn
+    apart: the cases' truths, sizes and deviations are those without it."""
+    plain = selfcheck.make_cases(6, seed=3)
+    shaped = selfcheck.make_cases(6, seed=3, shape=True)
+    for a, b in zip(plain, shaped):
+        assert (a.kind, a.effects, a.deviations, a.seed) == (b.kind, b.effects, b.deviations,
+                                                              b.seed)
+        assert not a.bench_effects
+        assert 2e-4 <= abs(b.bench_effects["flow_map_shape"]["amplitude"]) <= 5e-4
+        assert b.bench().effects == b.bench_effects and b.truth == a.truth
+    with pytest.raises(ValueError, match="plant"):
+        selfcheck.make_cases(2, seed=3, source="model", shape=True)

@@ -63,6 +63,8 @@ class PlantConstants(NamedTuple):
     gain_charge: float
     gain_discharge: float
     gain_slope: float  #: pressure-dependent valve gain k
+    shape: float  #: the flow map's departure from Eq. 8: amplitude [kg/s]
+    shape_phase: float  #: and phase [rad]
     supply_droops: bool  #: supply_droop on (else the supply stays at supply_set)
     supply_set: float  #: regulator set pressure [Pa]
     supply_droop: float  #: regulator droop R [Pa s/kg]
@@ -184,6 +186,8 @@ def build_constants(spec: PlantSpec) -> PlantConstants:
         valve_gain=p["valve.gain"], null_offset=e.get("null_offset", {}).get("offset", 0.0),
         gain_charge=p["flow.gain_charge"], gain_discharge=p["flow.gain_discharge"],
         gain_slope=e.get("pressure_dependent_gain", {}).get("slope", 0.0),
+        shape=e.get("flow_map_shape", {}).get("amplitude", 0.0),
+        shape_phase=e.get("flow_map_shape", {}).get("phase", 0.0),
         supply_droops="supply_droop" in e,
         supply_set=supply["set_pressure"], supply_droop=supply["droop"],
         supply_droop_2=supply["droop_quadratic"], supply_tau=supply["time_constant"],

@@ -82,6 +82,13 @@ def _seal(rng: np.random.Generator) -> dict[str, float]:
             "half_fraction": float(rng.uniform(0.12, 0.29))}
 
 
+def flow_map_shape(rng: np.random.Generator) -> dict[str, float]:
+    """A bench's flow map departing from Eq. 8 within the fit's error (valve docstring):
+    amplitude 0.2-0.5 g/s of either sign, any phase. A property of the bench like the
+    parameter deviations (``jetpipe selfcheck --flow-map-shape``), not a case's truth."""
+    return {"amplitude": _signed(rng, 2e-4, 5e-4), "phase": float(rng.uniform(-math.pi, math.pi))}
+
+
 #: Real effect name -> (subsystem, listed effect or "unlisted", sampler).
 REAL_EFFECTS: dict[str, RealEffect] = {
     "wall_heat_exchange": RealEffect("chamber", "thermal", lambda r: {

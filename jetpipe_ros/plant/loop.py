@@ -91,8 +91,10 @@ def _valve_flows(c: PlantConstants, x: np.ndarray, line: np.ndarray, u_eq: float
         new = (slot - back + n) % n
         p1 = theta * line[old, LINE_P1] + (1.0 - theta) * line[new, LINE_P1]
         p2 = theta * line[old, LINE_P2] + (1.0 - theta) * line[new, LINE_P2]
-    q1 = valve_inflow(u_eq, p1, x[SUPPLY], c.gain_charge, c.gain_discharge, c.gain_slope)
-    q2 = valve_inflow(-u_eq, p2, x[SUPPLY], c.gain_charge, c.gain_discharge, c.gain_slope)
+    q1 = valve_inflow(u_eq, p1, x[SUPPLY], c.gain_charge, c.gain_discharge, c.gain_slope,
+                      c.shape, c.shape_phase)
+    q2 = valve_inflow(-u_eq, p2, x[SUPPLY], c.gain_charge, c.gain_discharge, c.gain_slope,
+                      c.shape, c.shape_phase)
     x[DRAWN] = max(q1, 0.0) + max(q2, 0.0)
     if c.flow_lag:
         q1 = _lagged(c, x, FLOW, q1, x[P1])
@@ -150,8 +152,10 @@ def _flows(c: PlantConstants, x: np.ndarray, u_eq: float, vol1: float, vol2: flo
     p2 = x[P2]
     if not (c.flow_lag or c.line):
         ps = x[SUPPLY]
-        q1 = valve_inflow(u_eq, p1, ps, c.gain_charge, c.gain_discharge, c.gain_slope)
-        q2 = valve_inflow(-u_eq, p2, ps, c.gain_charge, c.gain_discharge, c.gain_slope)
+        q1 = valve_inflow(u_eq, p1, ps, c.gain_charge, c.gain_discharge, c.gain_slope, c.shape,
+                          c.shape_phase)
+        q2 = valve_inflow(-u_eq, p2, ps, c.gain_charge, c.gain_discharge, c.gain_slope,
+                          c.shape, c.shape_phase)
         x[DRAWN] = max(q1, 0.0) + max(q2, 0.0)
     t1 = _temperature(c, x, M1, E1)
     t2 = _temperature(c, x, M2, E2)

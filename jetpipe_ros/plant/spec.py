@@ -110,6 +110,11 @@ EFFECT_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
     "null_offset": (
         _p("offset", 0.1, "Valve null offset u_0 on the equivalent voltage", "V", -0.5, 0.5),
     ),
+    "flow_map_shape": (
+        _p("amplitude", 3e-4, "Amplitude A of the flow map's departure from Eq. 8 (within the "
+           "fit's 0.5 g/s)", "kg/s", -5e-4, 5e-4),
+        _p("phase", 0.0, "Phase phi of the departure along the pressure", "rad", -7.0, 7.0),
+    ),
     "pressure_dependent_gain": (
         _p("slope", 0.3, "Flow gain slope k: factor 1 + k (p - p_mid) / p_s", "", -0.9, 0.9),
     ),

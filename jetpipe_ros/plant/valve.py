@@ -51,6 +51,14 @@ Signal path per sub-step of length h::
   chamber at pressure p is scaled by 1 + k (p - p_mid) / p_s with p_mid = (p_s + p_atm) / 2
   (k [-]): the jet's recovery depends on the back pressure more than Eq. 8's fit says. The nulls
   of Eq. 8 stay; the flow around them grows or shrinks with the chamber pressure.
+- **Flow map of another shape** (``flow_map_shape``, a bench's property, in no case cycle:
+  ``jetpipe selfcheck --flow-map-shape``): a real valve's map departs from the fifth-order fit
+  by up to its error, about 0.5 g/s at most (the paper, Sec. 2.3). Added to Eq. 8 before the
+  direction factors, a smooth departure that keeps the nulls at u = 0,
+
+      dq(u, p) = A sin(pi u / 2.9 V) cos(2 pi (p - 1 bar) / 9 bar + phi)   [kg/s],
+
+  A [kg/s] at most 5e-4, phi [rad]; its RMS over the map's range is about A / 2.
 - **Flow lag** (``flow_lag``): the mass flow reaching each chamber q_c [kg/s] trails the flow
   map's q_v through the gas dynamics of the receiver and the ports, a second-order lag *after*
   the map's nonlinearity, q_c'' = w_n^2 (q_v - q_c) - 2 zeta w_n q_c' (w_n = 2 pi f_n [rad/s],
@@ -115,13 +123,19 @@ def jet_flow(u: float, p_bar: float) -> float:
 
 @njit(cache=True, error_model="numpy", inline="always")
 def valve_inflow(u_eq: float, p: float, p_supply: float, gain_charge: float,
-                 gain_discharge: float, gain_slope: float) -> float:
+                 gain_discharge: float, gain_slope: float, shape: float = 0.0,
+                 shape_phase: float = 0.0) -> float:
     """Mass flow [kg/s] into a chamber at ``p`` [Pa] for equivalent voltage ``u_eq`` [V] from a
-    supply at ``p_supply`` [Pa]: Eq. 8 by similarity in absolute pressure, the factor of its
+    supply at ``p_supply`` [Pa]: Eq. 8 (plus a departure of amplitude ``shape`` [kg/s] and
+    phase ``shape_phase`` [rad]) by similarity in absolute pressure, the factor of its
     direction, times 1 + ``gain_slope`` (p - p_mid) / p_s (module docstring)."""
     s = p_supply / P_SUPPLY
     p_bar = min(max(p / s * 1e-5, MAP_P_MIN), MAP_P_MAX)
-    q = s * jet_flow(u_eq, p_bar)
+    q = jet_flow(u_eq, p_bar)
+    if shape != 0.0:
+        q += shape * math.sin(math.pi * u_eq / 2.9) * \
+            math.cos(2.0 * math.pi * (p_bar - 1.0) / 9.0 + shape_phase)
+    q *= s
     if q < 0.0:
         q = 0.0 if p <= P_ATM else gain_discharge * q
     else:
