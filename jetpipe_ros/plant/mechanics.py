@@ -1,4 +1,4 @@
-"""The plant's piston: Eq. 14 with the pinned friction, stick-slip, bristles, a measured seal and
+"""The plant's piston: Eq. 14 with the paper's friction, stick-slip, bristles, a measured seal and
 end-stop cushions.
 
 M dv/dt = F_a - F_f - F_cushion - F_load, F_a = S (p1 - p2) - F_L - k_s (y - y_s) [N], M the
@@ -31,7 +31,7 @@ the gas spring included (over the sub-step S (p1 - p2) falls by k_gas h w, k_gas
   F / sigma_0. z is implicit (linearised in its rate) and coupled implicitly with v.
   The model's candidate is the LuGre model with constant damping, which creeps below breakaway.
 - **Measured seal** (``measured_seal``), replacing the stick logic: a hysteresis with
-  reversal-point memory over the pinned Stribeck curves of both directions (:mod:`seal`; the
+  reversal-point memory over the Stribeck curves (Eq. 18) of both directions (:mod:`seal`; the
   levels g_exit, g_entry [N] and viscous coefficients from :func:`directional_levels`), its
   stiffness implicit in v.
 - **End-stop cushions** (``end_stop_cushion``, on no list): within ``length`` d_c [m] of either
@@ -215,7 +215,7 @@ def bristles(v: float, z: float, f_a: float, planes: np.ndarray, p1: float, p2: 
 @njit(cache=True, error_model="numpy", inline="always")
 def directional_levels(planes: np.ndarray, v: float, p1: float, p2: float
                        ) -> tuple[float, float, float, float]:
-    """The pinned Stribeck curve's magnitude |F_st(v)| [N] in the exit and the entry direction
+    """The Stribeck curve (Eq. 18)'s magnitude |F_st(v)| [N] in the exit and the entry direction
     at velocity ``v`` [m/s] and pressures ``p1``, ``p2`` [Pa], and both directions' viscous
     coefficients F_v [N s/m]: (g_exit, g_entry, f_v_exit, f_v_entry)."""
     f_s, v_s, f_v_exit, f_c = friction_parameters(planes, 1.0, p1, p2)
