@@ -800,3 +800,11 @@ def test_flow_map_shape_departs_within_the_fit_error_and_keeps_the_nulls():
     for pressure in np.linspace(1.5e5, 9.5e5, 9):
         assert valve_inflow(0.0, pressure, 1e6, 1.0, 1.0, 0.0, amplitude, 0.7) == \
             valve_inflow(0.0, pressure, 1e6, 1.0, 1.0, 0.0)
+
+
+def test_line_delay_does_not_empty_a_chamber_below_the_atmosphere():
+    """A 3 V square wave through a 5 ms line, the piston free (chamber 1 small at its stop):
+    the delayed outflow stops at the atmosphere (it once pulled a chamber to 1.3 kPa)."""
+    u = 3.0 * np.sign(np.sin(2 * np.pi * 0.97 * T[:3000]))
+    out = simulate(PlantSpec().with_effect("transport_delay", delay=5e-3), u)
+    assert min(out.p1.min(), out.p2.min()) > 1e5 - 5e3

@@ -110,6 +110,12 @@ def _valve_flows(c: PlantConstants, x: np.ndarray, line: np.ndarray, u_eq: float
         q1 = theta * line[old, LINE_Q1] + (1.0 - theta) * line[new, LINE_Q1]
         q2 = theta * line[old, LINE_Q2] + (1.0 - theta) * line[new, LINE_Q2]
         x[LINE_HEAD] = (slot + 1) % n
+        # A chamber at or below the atmosphere feeds no outflow (the gas in transit is
+        # exhausted anyway): without this the line kept emptying a chamber to vacuum.
+        if q1 < 0.0 and x[P1] <= P_ATM:
+            q1 = 0.0
+        if q2 < 0.0 and x[P2] <= P_ATM:
+            q2 = 0.0
     return q1, q2
 
 

@@ -74,8 +74,10 @@ Signal path per sub-step of length h::
 
   so the pressure feeds back through 2 tau_l while the command acts through tau_l. Kept as a
   history of the sub-steps' pressures (read linearly interpolated) and flows (each held over
-  its sub-step, so every kg leaving the valve arrives: mass is conserved). The model's
-  candidate delays the command before the valve, the pressure acting at once.
+  its sub-step, so every kg leaving the valve arrives: mass is conserved, except that a
+  chamber at or below atmospheric pressure feeds no outflow, the gas in transit exhausted
+  anyway). The model's candidate delays the command before the valve, the pressure acting at
+  once.
 """
 
 from __future__ import annotations
