@@ -74,3 +74,57 @@ def test_the_diagnosis_neither_runs_itself_nor_renders():
              for group, path in _modules() if group == "diagnosis"
              for name in _imports(path) if name.startswith(outward)]
     assert wrong == []
+
+
+#: What the plant may take from the model: parameter names and containers, errors, the output
+#: layout and the actuator's interface contract; nothing that computes physics.
+PLANT_FROM_MODEL = {
+    "jetpipe_ros.model": {"ModelParams", "ParameterError", "Trace"},
+    "jetpipe_ros.model.params": {"ParamSpec", "check_value"},
+    "jetpipe_ros.model.errors": {"ParameterError"},
+    "jetpipe_ros.model.kernel": {"N_OUT", "OUT_T", "OUT_U", "OUT_Y", "OUT_V", "OUT_P1", "OUT_P2",
+                                 "OUT_FRICTION", "OUT_FORCE", "OUT_UEQ", "OUT_Y_MEAS",
+                                 "OUT_P1_MEAS", "OUT_P2_MEAS"},
+    "jetpipe_ros.model.actuator": {"REGULATOR_KEYS", "replay_command"},
+}
+
+
+def _imported_names(path: Path) -> list[tuple[str, str]]:
+    """(module, name) of every ``import`` and ``from ... import`` in ``path`` (a plain
+    ``import a.b`` as (a.b, ""))."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            out.extend((node.module, alias.name) for alias in node.names)
+        elif isinstance(node, ast.Import):
+            out.extend((alias.name, "") for alias in node.names)
+    return out
+
+
+def test_the_plant_takes_only_names_and_containers_from_the_model():
+    """The self-check's plant is written apart from the model: its flow map, valve chain,
+    friction and volumes are its own, so a structural error of the model can show in it. It
+    may read the model's parameter names and values (a deviated bench is described the same
+    way), its errors and output layout, nothing that computes."""
+    wrong = []
+    for group, path in _modules():
+        if group != "plant":
+            continue
+        for module, name in _imported_names(path):
+            if not (module == "jetpipe_ros.model" or module.startswith("jetpipe_ros.model.")):
+                continue
+            if name not in PLANT_FROM_MODEL.get(module, set()):
+                wrong.append(f"{path.relative_to(PACKAGE.parent)} imports "
+                             f"{module}{'.' + name if name else ''}")
+    assert wrong == []
+
+
+def test_the_plant_rule_catches_physics():
+    """The rule above fails on the imports the plant used to have (a test that cannot fail is
+    no test)."""
+    before = ("from jetpipe_ros.model.flow import chamber_inflow\n"
+              "from jetpipe_ros.model.valve import discretise_valve\n"
+              "from jetpipe_ros.model import kernel as k\n")
+    names = [(node.module, alias.name) for node in ast.walk(ast.parse(before))
+             if isinstance(node, ast.ImportFrom) for alias in node.names]
+    assert all(name not in PLANT_FROM_MODEL.get(module, set()) for module, name in names)

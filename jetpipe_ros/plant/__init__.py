@@ -1,8 +1,9 @@
-"""A stand-in for real hardware, written apart from the model's effects.
+"""A stand-in for real hardware, written apart from the model: its physics and its effects.
 
-The plant simulates the actuator with the pinned nominal physics of docs/model.md (the model's
-one copy of each pinned equation: Eq. 8, Eq. 13, the friction planes and Eq. 15/18, the valve
-chain's exact discretisation, the parameters) and, switched on at will, real effects in other
+The plant simulates the actuator with the paper's nominal physics evaluated by its own code
+(Eq. 8 typed from the paper, the valve chain of Eq. 4 and 9 by Runge-Kutta steps behind the
+delay of Eq. 10, the friction planes and Eq. 15/18, Eq. 13), taking from the model only the
+parameters' names and values, and, switched on at will, real effects in other
 functional forms than the model's candidates, and effects on no list, each with its own
 equations (in the docstrings of ``valve``, ``chambers``, ``mechanics`` and ``sensors``). Its
 own compiled loop (``loop``) integrates in 8 sub-steps per sample. :class:`Plant` has the

@@ -3,7 +3,8 @@ exchange.
 
 Each chamber's gas is held as its mass m [kg] (and, with ``wall_heat_exchange``, its internal
 energy U = m c_v T [J]); pressure follows from the ideal gas, p = m r T / V (isothermal) or
-p = (gamma - 1) U / V, with V from the pinned Eq. 13 (``chamber_volumes``). A sub-step applies,
+p = (gamma - 1) U / V, with V from Eq. 13 (:func:`volumes`: V_1 = S y + V_01, V_2 = -S y + V_02,
+S the piston area [m^2], V_0i the volumes at y = 0 [m^3]). A sub-step applies,
 in turn, the flows at fixed volume, the volume change of the piston's move, and the heat the
 walls exchange: each part in closed form where it can be stiff. Units SI, pressures absolute.
 
@@ -51,7 +52,7 @@ import math
 
 from numba import njit
 
-from jetpipe_ros.model.flow import GAMMA_AIR
+from jetpipe_ros.plant.air import GAMMA_AIR
 
 #: ISO 6358 reference atmosphere (ISO 8778): density [kg/m^3] and temperature [K].
 RHO_REF = 1.185
@@ -60,6 +61,13 @@ T_REF = 293.15
 LAMINAR_RATIO = 0.999
 #: Dynamic viscosity of air at 25 degC [Pa s].
 AIR_VISCOSITY = 1.84e-5
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def volumes(y: float, area: float, v01: float, v02: float) -> tuple[float, float]:
+    """Eq. 13: the chambers' volumes [m^3] with the piston at ``y`` [m] (positive enlarges
+    chamber 1), piston area ``area`` [m^2], volumes ``v01``, ``v02`` [m^3] at y = 0."""
+    return v01 + area * y, v02 - area * y
 
 
 @njit(cache=True, error_model="numpy")

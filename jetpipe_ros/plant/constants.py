@@ -7,26 +7,36 @@ from typing import NamedTuple
 
 import numpy as np
 
-from jetpipe_ros.model.flow import GAMMA_AIR, P_SUPPLY_NOMINAL
+from jetpipe_ros.plant.air import GAMMA_AIR, P_SUPPLY
 from jetpipe_ros.plant.linear import second_order_lag
 from jetpipe_ros.plant.seal import knee_of, length_of
 from jetpipe_ros.plant.spec import PlantSpec
-from jetpipe_ros.plant.valve import delayed_chain
+from jetpipe_ros.plant.valve import VALVE_STEPS, chain_parameters
 
-# State layout: scalars, the extra lag, the sensors, the plays, the measured seal's reversal
-# points, then the valve chain.
+# State layout: scalars, the flow lag, the sensors, the load, the plays, the measured seal's
+# reversal points, then the valve chain.
 (Y, V, M1, M2, E1, E2, P1, P2, STUCK, Z, SUPPLY, DRAWN, STEP, HEAD, UCMD, UEQ,
  FRICTION, SEAL_D, SEAL_N, REGULATOR) = range(20)  # SEAL_D: the seal's branch direction,
 # SEAL_N: its reversal points in use; REGULATOR: the supply regulator's outlet pressure [Pa]
-LAG = 20  #: extra valve lag: output [V], its rate [V/s]
-SENSOR1 = 22  #: chamber 1 transducer: reading [Pa], its rate [Pa/s]
-SENSOR2 = 24  #: chamber 2 transducer
-POSITION = 26  #: position transducer: reading [m], its rate [m/s]
-PLAY = 28  #: the N_PLAY play operators' outputs [V]
+FLOW = 20  #: flow lag: chamber 1's flow [kg/s], its rate, chamber 2's, its rate
+SENSOR1 = 24  #: chamber 1 transducer: reading [Pa], its rate [Pa/s]
+SENSOR2 = 26  #: chamber 2 transducer
+POSITION = 28  #: position transducer: reading [m], its rate [m/s]
+LOAD = 30  #: the compliant load: position [m], velocity [m/s]
+LINE_HEAD = 32  #: the line history's slot of the current sub-step
+PLAY = 33  #: the N_PLAY play operators' outputs [V]
 N_PLAY = 3
 SEAL = PLAY + N_PLAY  #: the measured seal's N_SEAL reversal points: x_r [m], F_r [N] each
 N_SEAL = 8
-VALVE = SEAL + 2 * N_SEAL  #: first of the valve chain's states
+VALVE = SEAL + 2 * N_SEAL  #: the valve chain's states: coil current, rotor rate, angle, lead-lag
+N_VALVE = 4
+#: Columns of the line history (one row per sub-step): the chambers' pressures at the sub-step's
+#: start [Pa] and the valve's flows over it [kg/s].
+LINE_P1, LINE_P2, LINE_Q1, LINE_Q2 = range(4)
+
+
+#: The pressure transducers' span: 0-10 bar gauge [Pa].
+SENSOR_LOW, SENSOR_SPAN = 1.0e5, 1.0e6
 
 
 class PlantConstants(NamedTuple):
@@ -35,22 +45,26 @@ class PlantConstants(NamedTuple):
     dt: float  #: sample time [s]
     substeps: int  #: sub-steps per sample
     u_limit: float  #: command saturation [V]
-    valve_a: np.ndarray  #: valve chain over a sub-step (delay: valve docstring)
-    valve_b_early: np.ndarray
-    valve_b_late: np.ndarray
-    valve_c: np.ndarray
-    delay_whole: int  #: whole sub-steps of the total delay
-    lag: bool  #: extra second-order valve lag on
-    lag_a: np.ndarray  #: its discretisation over a sub-step
-    lag_b: np.ndarray
+    chain: np.ndarray  #: the valve chain's (R, L, K_t, K_b, J, K_f, K_s, w_p) (valve docstring)
+    lead: float  #: w_p / w_z of Eq. 9
+    delay: float  #: the valve's delay in samples
+    delay_whole: int  #: whole samples it reaches back (the command ring holds 2 more)
+    valve_steps: int  #: Runge-Kutta steps of the chain per sub-step
+    flow_lag: bool  #: the second-order lag on each chamber's flow on
+    flow_lag_a: np.ndarray  #: its discretisation over a sub-step
+    flow_lag_b: np.ndarray
+    line: bool  #: the line delay on
+    line_delay: float  #: its one-way delay in sub-steps
+    line_size: int  #: rows of the line history
     play_thresholds: np.ndarray  #: [V]; empty = no hysteresis
     play_weights: np.ndarray  #: normalised to sum 1
     valve_gain: float  #: u_eq per u_h
     null_offset: float  #: [V]
-    flow_coef: np.ndarray  #: Eq. 8 coefficients
     gain_charge: float
     gain_discharge: float
     gain_slope: float  #: pressure-dependent valve gain k
+    shape: float  #: the flow map's departure from Eq. 8: amplitude [kg/s]
+    shape_phase: float  #: and phase [rad]
     supply_droops: bool  #: supply_droop on (else the supply stays at supply_set)
     supply_set: float  #: regulator set pressure [Pa]
     supply_droop: float  #: regulator droop R [Pa s/kg]
@@ -75,6 +89,10 @@ class PlantConstants(NamedTuple):
     v01: float  #: chamber volumes at y = 0 [m^3]
     v02: float
     mass: float  #: moving mass [kg]
+    load: bool  #: the compliant load on
+    load_mass: float  #: m_x [kg]
+    load_k: float  #: k_x [N/m]
+    load_c: float  #: c_x [N s/m]
     y_max: float  #: end stops at +-y_max [m]
     locked: bool
     regulated: bool
@@ -95,7 +113,9 @@ class PlantConstants(NamedTuple):
     sensor: bool  #: second-order transducers on
     sensor_a: np.ndarray
     sensor_b: np.ndarray
-    sensor_gain: float  #: 1 + gain error
+    sensor_bow: float  #: the transducers' nonlinearity at mid-span [Pa]
+    sensor_low: float  #: their span's start [Pa, absolute]
+    sensor_span: float  #: and width [Pa]
     sensor_offset_1: float  #: [Pa]
     sensor_offset_2: float  #: [Pa]
     position_filter: bool  #: two-stage position transducer on
@@ -111,10 +131,18 @@ def build_constants(spec: PlantSpec) -> PlantConstants:
     e = spec.effects
     dt = p["integration.sample_time"]
     h = dt / spec.substeps
-    chain = delayed_chain(p, h, p["valve.delay"] + e.get("transport_delay", {}).get("delay", 0.0))
-    lag = e.get("second_order_lag")
+    chain, lead = chain_parameters(p)
+    delay = p["valve.delay"] / dt
+    lag = e.get("flow_lag")
     lag_a, lag_b = second_order_lag(lag["natural_frequency"], lag["damping_ratio"], h) if lag \
         else (np.zeros((2, 2)), np.zeros(2))
+    line_delay = e.get("transport_delay", {}).get("delay", 0.0) / h
+    load = e.get("extra_mass")
+    if load:
+        load_k = load["mass"] * (2.0 * math.pi * load["frequency"]) ** 2
+        load_c = 2.0 * load["damping_ratio"] * math.sqrt(load_k * load["mass"])
+    else:
+        load_k = load_c = 0.0
     plays = e.get("weighted_play_hysteresis")
     if plays:
         thresholds = np.array([plays[f"threshold_{i}"] for i in range(1, N_PLAY + 1)])
@@ -122,7 +150,7 @@ def build_constants(spec: PlantSpec) -> PlantConstants:
         weights = weights / weights.sum()
     else:
         thresholds = weights = np.zeros(0)
-    supply = e.get("supply_droop", {"set_pressure": P_SUPPLY_NOMINAL, "droop": 0.0,
+    supply = e.get("supply_droop", {"set_pressure": P_SUPPLY, "droop": 0.0,
                                     "droop_quadratic": 0.0, "time_constant": 1.0,
                                     "hose_conductance": 1.0, "hose_volume": 1.0})
     gap = e.get("seal_gap_leak", {"width": 0.0, "height": 0.0, "length": 0.0,
@@ -149,14 +177,17 @@ def build_constants(spec: PlantSpec) -> PlantConstants:
     r_gas = p["chamber.gas_constant"]
     return PlantConstants(
         dt=dt, substeps=spec.substeps, u_limit=p["valve.command_limit"],
-        valve_a=chain.a, valve_b_early=chain.b_early, valve_b_late=chain.b_late,
-        valve_c=chain.c, delay_whole=chain.whole,
-        lag=lag is not None, lag_a=lag_a, lag_b=lag_b,
+        chain=chain, lead=lead, delay=delay, delay_whole=int(math.ceil(delay - 1e-9)),
+        valve_steps=VALVE_STEPS,
+        flow_lag=lag is not None, flow_lag_a=lag_a, flow_lag_b=lag_b,
+        line=line_delay > 0.0, line_delay=line_delay,
+        line_size=int(math.ceil(line_delay - 1e-9)) + 2,
         play_thresholds=thresholds, play_weights=weights,
         valve_gain=p["valve.gain"], null_offset=e.get("null_offset", {}).get("offset", 0.0),
-        flow_coef=np.array(p["flow.coefficients"], dtype=float),
         gain_charge=p["flow.gain_charge"], gain_discharge=p["flow.gain_discharge"],
         gain_slope=e.get("pressure_dependent_gain", {}).get("slope", 0.0),
+        shape=e.get("flow_map_shape", {}).get("amplitude", 0.0),
+        shape_phase=e.get("flow_map_shape", {}).get("phase", 0.0),
         supply_droops="supply_droop" in e,
         supply_set=supply["set_pressure"], supply_droop=supply["droop"],
         supply_droop_2=supply["droop_quadratic"], supply_tau=supply["time_constant"],
@@ -171,7 +202,9 @@ def build_constants(spec: PlantSpec) -> PlantConstants:
         t_supply=p["chamber.temperature"] + (heat["supply_temperature_offset"] if heat else 0.0),
         r_gas=r_gas, cv=r_gas / (GAMMA_AIR - 1.0),
         area=p["chamber.piston_area"], v01=p["chamber.dead_volume_1"],
-        v02=p["chamber.dead_volume_2"], mass=spec.mass,
+        v02=p["chamber.dead_volume_2"], mass=p["mechanics.mass"],
+        load=load is not None, load_mass=load["mass"] if load else 0.0, load_k=load_k,
+        load_c=load_c,
         y_max=0.5 * p["mechanics.stroke"], locked=p["mechanics.locked"],
         regulated=p["chamber.regulated"],
         planes=np.array([[p[f"friction.{phase}.{q}"] for q in
@@ -186,7 +219,8 @@ def build_constants(spec: PlantSpec) -> PlantConstants:
         cushion_c=cushion["damping"],
         spring_k=spring["stiffness"], spring_y0=spring["free_position"],
         sensor=sensor is not None, sensor_a=sensor_a, sensor_b=sensor_b,
-        sensor_gain=1.0 + (sensor["gain_error"] if sensor else 0.0),
+        sensor_bow=sensor["nonlinearity"] if sensor else 0.0,
+        sensor_low=SENSOR_LOW, sensor_span=SENSOR_SPAN,
         sensor_offset_1=sensor["offset_1"] if sensor else 0.0,
         sensor_offset_2=sensor["offset_2"] if sensor else 0.0,
         position_filter=position is not None,

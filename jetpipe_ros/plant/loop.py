@@ -2,16 +2,18 @@
 
 Per sub-step of length h = dt / substeps (8 by default, the model integrates in 4):
 
-1. the command enters the delay line; the valve chain advances exactly behind the continuous
-   delay, then the extra lag, the plays and the null offset give u_eq (:mod:`valve`);
+1. the valve chain advances by Runge-Kutta steps behind the continuous delay (the sample's
+   command entered the command ring), then the plays and the null offset give u_eq
+   (:mod:`valve`);
 2. the regulator and the hose advance (the supply_droop effect); the valve flows (Eq. 8 by
-   similarity, pressure-dependent gain) and the ISO 6358 and seal-gap leaks move gas mass (and
+   similarity, pressure-dependent gain; through the flow lag and the line when they are on,
+   from the sub-step's start) and the ISO 6358 and seal-gap leaks move gas mass (and
    enthalpy) at fixed volume (:mod:`chambers`), by Heun's rule (second order: the flows at the
    start and at the Euler prediction, averaged; u_eq the valve's output averaged over the
    sub-step);
 3. the piston's velocity and position advance implicitly under the pressures so reached (the
    gas spring linearised implicit as well), with stick-slip, bristles or a measured seal
-   (:mod:`seal`), cushions and the inelastic end stops (:mod:`mechanics`);
+   (:mod:`seal`), cushions, a compliant load and the inelastic end stops (:mod:`mechanics`);
 4. the chambers' gas follows the volume change (isothermal, or isentropic then exact wall heat
    exchange) and the pressures are read from mass (and energy) and volume;
 5. the transducers advance on the pressures held over the sub-step and the position's mean over
@@ -28,49 +30,93 @@ import math
 import numpy as np
 from numba import njit
 
-from jetpipe_ros.model.chamber import chamber_volumes
-from jetpipe_ros.model.flow import GAMMA_AIR, P_ATM
-from jetpipe_ros.model.valve import U_EQ_MAX, U_EQ_MIN
+from jetpipe_ros.plant.air import GAMMA_AIR, P_ATM
 from jetpipe_ros.plant.chambers import (exchange_heat, gap_leak_mass, isentropic_energy,
-                                        leak_mass)
-from jetpipe_ros.plant.constants import (DRAWN, E1, E2, FRICTION, HEAD, LAG, M1, M2, N_PLAY, P1,
-                                         N_SEAL, P2, PLAY, POSITION, REGULATOR, SEAL, SEAL_D,
+                                        leak_mass, volumes)
+from jetpipe_ros.plant.constants import (DRAWN, E1, E2, FLOW, FRICTION, HEAD, LINE_HEAD, LINE_P1,
+                                         LINE_P2, LINE_Q1, LINE_Q2, LOAD, M1, M2, N_PLAY, N_SEAL,
+                                         N_VALVE, P1, P2, PLAY, POSITION, REGULATOR, SEAL, SEAL_D,
                                          SEAL_N, SENSOR1, SENSOR2, STEP, STUCK, SUPPLY, UCMD, UEQ,
                                          VALVE, V, Y, Z, PlantConstants)
 from jetpipe_ros.plant.linear import second_order_step
 from jetpipe_ros.plant.mechanics import bristles, directional_levels, stick_slip
 from jetpipe_ros.plant.seal import seal_force, seal_substep
 from jetpipe_ros.plant.sensors import measure
-from jetpipe_ros.plant.valve import valve_inflow, weighted_plays
+from jetpipe_ros.plant.valve import (U_EQ_HIGH, U_EQ_LOW, chain_output, chain_substep,
+                                     valve_inflow, weighted_plays)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _valve(c: PlantConstants, x: np.ndarray, xv: np.ndarray, tmp: np.ndarray,
-           ring: np.ndarray, head: int, u: float) -> float:
-    """u_eq [V] over the sub-step whose command is ``u`` [V] (the valve chain's and the lag's
-    outputs averaged over the sub-step's ends: the flow integrates trapezoidally in them);
-    advances the valve's states."""
-    n = ring.shape[0]
-    ring[head] = u
-    u_late = ring[(head - c.delay_whole) % n]
-    u_early = ring[(head - c.delay_whole - 1) % n]
-    nv = xv.shape[0]
-    u_f = 0.0
-    for i in range(nv):
-        acc = c.valve_b_early[i] * u_early + c.valve_b_late[i] * u_late
-        for j in range(nv):
-            acc += c.valve_a[i, j] * xv[j]
-        # Decaying states would otherwise end in subnormals, which are ~100x slower.
-        tmp[i] = acc if abs(acc) > 1e-200 else 0.0
-        u_f += 0.5 * c.valve_c[i] * (xv[i] + tmp[i])
-    xv[:] = tmp
-    if c.lag:
-        start = x[LAG]
-        second_order_step(c.lag_a, c.lag_b, x, LAG, u_f)
-        u_f = 0.5 * (start + x[LAG])
+def _valve(c: PlantConstants, x: np.ndarray, xv: np.ndarray, ring: np.ndarray, head: int,
+           j: int) -> float:
+    """u_eq [V] over sub-step ``j`` of the sample whose command is at ``ring[head]`` (the
+    chain's output averaged over the sub-step's ends: the flow integrates trapezoidally in
+    it); advances the valve's states."""
+    u_start = chain_output(c.chain, c.lead, xv)
+    chain_substep(c.chain, xv, ring, head, j, c.substeps, c.delay, c.dt / c.substeps,
+                  c.valve_steps)
+    u_f = 0.5 * (u_start + chain_output(c.chain, c.lead, xv))
     if c.play_thresholds.shape[0]:
         u_f = weighted_plays(x[PLAY:PLAY + N_PLAY], c.play_thresholds, c.play_weights, u_f)
-    return min(max(c.valve_gain * u_f + c.null_offset, U_EQ_MIN), U_EQ_MAX)
+    return min(max(c.valve_gain * u_f + c.null_offset, U_EQ_LOW), U_EQ_HIGH)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _lagged(c: PlantConstants, x: np.ndarray, i: int, q: float, p: float) -> float:
+    """The flow lag's output [kg/s] averaged over the sub-step, its state at ``x[i]`` advanced
+    with the valve's flow ``q`` [kg/s] held; no outflow from a chamber at ``p`` <= p_atm."""
+    start = x[i]
+    second_order_step(c.flow_lag_a, c.flow_lag_b, x, i, q)
+    out = 0.5 * (start + x[i])
+    return 0.0 if out < 0.0 and p <= P_ATM else out
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _valve_flows(c: PlantConstants, x: np.ndarray, line: np.ndarray, u_eq: float
+                 ) -> tuple[float, float]:
+    """The valve's flows [kg/s] reaching chambers 1 and 2 over the sub-step when they do not
+    follow the chambers' present pressures (flow lag, line delay: valve docstring); records
+    the line's history and what the valve draws."""
+    p1 = x[P1]
+    p2 = x[P2]
+    n = line.shape[0]
+    slot = int(x[LINE_HEAD])
+    if c.line:
+        line[slot, LINE_P1] = p1
+        line[slot, LINE_P2] = p2
+        # The port's pressure of line_delay sub-steps ago, between the rows around it.
+        back = int(math.floor(c.line_delay))
+        theta = c.line_delay - back
+        old = (slot - back - 1 + n) % n
+        new = (slot - back + n) % n
+        p1 = theta * line[old, LINE_P1] + (1.0 - theta) * line[new, LINE_P1]
+        p2 = theta * line[old, LINE_P2] + (1.0 - theta) * line[new, LINE_P2]
+    q1 = valve_inflow(u_eq, p1, x[SUPPLY], c.gain_charge, c.gain_discharge, c.gain_slope,
+                      c.shape, c.shape_phase)
+    q2 = valve_inflow(-u_eq, p2, x[SUPPLY], c.gain_charge, c.gain_discharge, c.gain_slope,
+                      c.shape, c.shape_phase)
+    x[DRAWN] = max(q1, 0.0) + max(q2, 0.0)
+    if c.flow_lag:
+        q1 = _lagged(c, x, FLOW, q1, x[P1])
+        q2 = _lagged(c, x, FLOW + 2, q2, x[P2])
+    if c.line:
+        line[slot, LINE_Q1] = q1
+        line[slot, LINE_Q2] = q2
+        # What left the valve line_delay sub-steps ago, each row's flow held over its sub-step.
+        back = int(math.floor(c.line_delay))
+        theta = c.line_delay - back
+        old = (slot - back - 1 + n) % n
+        new = (slot - back + n) % n
+        q1 = theta * line[old, LINE_Q1] + (1.0 - theta) * line[new, LINE_Q1]
+        q2 = theta * line[old, LINE_Q2] + (1.0 - theta) * line[new, LINE_Q2]
+        x[LINE_HEAD] = (slot + 1) % n
+        # A chamber at or below the atmosphere feeds no outflow (the gas in transit is
+        # exhausted anyway): without this the line kept emptying a chamber to vacuum.
+        if q1 < 0.0 and x[P1] <= P_ATM:
+            q1 = 0.0
+        if q2 < 0.0 and x[P2] <= P_ATM:
+            q2 = 0.0
+    return q1, q2
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -104,14 +150,19 @@ def _vent(c: PlantConstants, x: np.ndarray, m: int, e: int, p: float, t: float, 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _flows(c: PlantConstants, x: np.ndarray, u_eq: float, vol1: float, vol2: float,
-           h: float) -> None:
-    """Move gas through the valve and the leaks over a sub-step at fixed volume."""
+           h: float, q1: float, q2: float) -> None:
+    """Move gas through the valve and the leaks over a sub-step at fixed volume; the valve's
+    flows are ``q1``, ``q2`` [kg/s] with a flow lag or a line, else the map's at the present
+    pressures."""
     p1 = x[P1]
     p2 = x[P2]
-    ps = x[SUPPLY]
-    q1 = valve_inflow(c.flow_coef, u_eq, p1, ps, c.gain_charge, c.gain_discharge, c.gain_slope)
-    q2 = valve_inflow(c.flow_coef, -u_eq, p2, ps, c.gain_charge, c.gain_discharge, c.gain_slope)
-    x[DRAWN] = max(q1, 0.0) + max(q2, 0.0)
+    if not (c.flow_lag or c.line):
+        ps = x[SUPPLY]
+        q1 = valve_inflow(u_eq, p1, ps, c.gain_charge, c.gain_discharge, c.gain_slope, c.shape,
+                          c.shape_phase)
+        q2 = valve_inflow(-u_eq, p2, ps, c.gain_charge, c.gain_discharge, c.gain_slope,
+                          c.shape, c.shape_phase)
+        x[DRAWN] = max(q1, 0.0) + max(q2, 0.0)
     t1 = _temperature(c, x, M1, E1)
     t2 = _temperature(c, x, M2, E2)
     cp = c.cv + c.r_gas
@@ -184,10 +235,14 @@ def _mechanics(c: PlantConstants, x: np.ndarray, f_load: float, h: float,
     # k_gas = n S^2 (p1 / V1 + p2 / V2), n = 1 isothermal, gamma isentropic.
     gas = 0.0
     if not c.regulated:
-        vol1, vol2 = chamber_volumes(y, c.area, c.v01, c.v02)
+        vol1, vol2 = volumes(y, c.area, c.v01, c.v02)
         gas = (GAMMA_AIR if c.thermal else 1.0) * c.area * c.area * \
             (x[P1] / vol1 + x[P2] / vol2) * h
     gas += c.spring_k * h  # the load spring implicit as well
+    if c.load:
+        # The compliant load held: k_x (y + h w - x_l - h v_l) + c_x (w - v_l), w implicit.
+        f_a -= c.load_k * (y - x[LOAD] - h * x[LOAD + 1]) - c.load_c * x[LOAD + 1]
+        gas += c.load_k * h + c.load_c
     depth = abs(y) - (c.y_max - c.cushion_length)
     side = math.copysign(1.0, y)
     if c.cushion_length > 0.0 and depth > 0.0:
@@ -217,6 +272,14 @@ def _mechanics(c: PlantConstants, x: np.ndarray, f_load: float, h: float,
             g_exit, g_entry, _, _ = directional_levels(c.planes, 0.0, x[P1], x[P2])
             friction, _, n = seal_force(y_new, points, n, d, g_exit, g_entry, g_exit + g_entry,
                                         c.seal_length, c.seal_knee)
+    if c.load:
+        # The load follows, implicit in its velocity: m_x (v_l' - v_l) / h = k_x (y' - x_l -
+        # h v_l') + c_x (w - v_l').
+        inertia = c.load_mass / h
+        v_l = (inertia * x[LOAD + 1] + c.load_k * (y_new - x[LOAD]) + c.load_c * w) / \
+            (inertia + c.load_k * h + c.load_c)
+        x[LOAD] += h * v_l
+        x[LOAD + 1] = v_l
     x[Y] = y_new
     x[V] = w
     x[STUCK] = 1.0 if stuck else 0.0
@@ -228,15 +291,14 @@ def _mechanics(c: PlantConstants, x: np.ndarray, f_load: float, h: float,
 
 
 @njit(cache=True, error_model="numpy")
-def advance(c: PlantConstants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
-            f_load: np.ndarray, noise: np.ndarray, out: np.ndarray) -> None:
+def advance(c: PlantConstants, x: np.ndarray, ring: np.ndarray, line: np.ndarray,
+            u: np.ndarray, f_load: np.ndarray, noise: np.ndarray, out: np.ndarray) -> None:
     """Advance ``len(u)`` samples from state ``x`` (in place): ``u`` [V] and ``f_load`` [N]
     held over each sample, ``noise`` (n, 3) standard normals, ``out[k]`` the outputs at the end
-    of sample k. Commands must be finite."""
+    of sample k; ``ring`` the commands of the last samples, ``line`` the line delay's history
+    (both in place). Commands must be finite."""
     h = c.dt / c.substeps
-    nv = c.valve_c.shape[0]
-    xv = x[VALVE:VALVE + nv].copy()
-    tmp = np.empty(nv)
+    xv = x[VALVE:VALVE + N_VALVE].copy()
     points = np.empty(2 * N_SEAL)
     head = int(x[HEAD])
     regulator_decay = math.exp(-h / c.supply_tau)
@@ -244,22 +306,26 @@ def advance(c: PlantConstants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
     for k in range(u.shape[0]):
         u_k = min(max(u[k], -c.u_limit), c.u_limit)
         x[UCMD] = u_k
-        for _ in range(c.substeps):
-            u_eq = _valve(c, x, xv, tmp, ring, head, u_k)
-            head = (head + 1) % ring.shape[0]
+        head = (head + 1) % ring.shape[0]
+        ring[head] = u_k
+        for j in range(c.substeps):
+            u_eq = _valve(c, x, xv, ring, head, j)
             x[UEQ] = u_eq
             p1_held = x[P1]
             p2_held = x[P2]
             y_held = x[Y]
-            vol1, vol2 = chamber_volumes(x[Y], c.area, c.v01, c.v02)
+            vol1, vol2 = volumes(x[Y], c.area, c.v01, c.v02)
             if c.supply_droops:
                 _supply(c, x, regulator_decay, hose_decay)
             if not c.regulated:
+                q1 = q2 = 0.0
+                if c.flow_lag or c.line:
+                    q1, q2 = _valve_flows(c, x, line, u_eq)
                 # Heun: the flows at the start and at the Euler prediction, averaged.
                 m1, m2, e1, e2 = x[M1], x[M2], x[E1], x[E2]
-                _flows(c, x, u_eq, vol1, vol2, h)
+                _flows(c, x, u_eq, vol1, vol2, h, q1, q2)
                 _pressures(c, x, vol1, vol2)
-                _flows(c, x, u_eq, vol1, vol2, h)
+                _flows(c, x, u_eq, vol1, vol2, h, q1, q2)
                 x[M1] = 0.5 * (m1 + x[M1])
                 x[M2] = 0.5 * (m2 + x[M2])
                 x[E1] = 0.5 * (e1 + x[E1])
@@ -270,7 +336,7 @@ def advance(c: PlantConstants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
                 x[FRICTION] = 0.0
             else:
                 _mechanics(c, x, f_load[k], h, points)
-            new1, new2 = chamber_volumes(x[Y], c.area, c.v01, c.v02)
+            new1, new2 = volumes(x[Y], c.area, c.v01, c.v02)
             if c.regulated:
                 t1 = _temperature(c, x, M1, E1)
                 t2 = _temperature(c, x, M2, E2)
@@ -293,5 +359,5 @@ def advance(c: PlantConstants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
                                   0.5 * (y_held + x[Y]))
         x[STEP] += 1.0
         measure(c, x, noise[k], out[k])
-    x[VALVE:VALVE + nv] = xv
+    x[VALVE:VALVE + N_VALVE] = xv
     x[HEAD] = head

@@ -1,10 +1,15 @@
-"""The plant's piston: Eq. 14 with the pinned friction, stick-slip, bristles, a measured seal and
+"""The plant's piston: Eq. 14 with the paper's friction, stick-slip, bristles, a measured seal and
 end-stop cushions.
 
-M dv/dt = F_a - F_f - F_cushion, F_a = S (p1 - p2) - F_L - k_s (y - y_s) [N], M the moving mass [kg] (the
-nominal plus ``extra_mass`` [kg], a load or fixture on the rod). The friction parameters are the
-pinned planes (``friction_parameters``), Eq. 18's Stribeck curve (``stribeck_force``) and Eq. 15
-at rest (``static_friction``). Each sub-step of length h is implicit Euler in the velocity w,
+M dv/dt = F_a - F_f - F_cushion - F_load, F_a = S (p1 - p2) - F_L - k_s (y - y_s) [N], M the
+moving mass [kg]. The friction is this module's own evaluation of the paper's: each of F_S, v_s,
+F_v, F_C a plane c0 + c1 p1 + c2 p2 over the chamber pressures in bar (Eq. 20-27, the
+coefficients from ``friction.*`` of the model parameters), the entry planes for motion inward,
+the exit planes outward, evaluated at the mean pressure outside the region each phase was fitted
+in (entry where p2 > p1, exit where p1 > p2) and kept on its physical side (|F_C|, |F_S| >= 1 N,
+|v_s| >= 1e-4 m/s, F_v >= 0); Eq. 18 sliding, F = F_C + (F_S - F_C) exp(-(v / v_s)^2) + F_v v,
+and Eq. 15 at rest (the friction balances the applied force up to |F_S|). Each sub-step of
+length h is implicit Euler in the velocity w,
 the gas spring included (over the sub-step S (p1 - p2) falls by k_gas h w, k_gas = n S^2
 (p1 / V1 + p2 / V2), n = 1 isothermal, gamma with the energy balance):
 
@@ -26,13 +31,24 @@ the gas spring included (over the sub-step S (p1 - p2) falls by k_gas h w, k_gas
   F / sigma_0. z is implicit (linearised in its rate) and coupled implicitly with v.
   The model's candidate is the LuGre model with constant damping, which creeps below breakaway.
 - **Measured seal** (``measured_seal``), replacing the stick logic: a hysteresis with
-  reversal-point memory over the pinned Stribeck curves of both directions (:mod:`seal`; the
+  reversal-point memory over the Stribeck curves (Eq. 18) of both directions (:mod:`seal`; the
   levels g_exit, g_entry [N] and viscous coefficients from :func:`directional_levels`), its
   stiffness implicit in v.
 - **End-stop cushions** (``end_stop_cushion``, on no list): within ``length`` d_c [m] of either
   end stop a spring-damper pushes the piston back, F = max(k_c e + c_c de/dt, 0) with the
   penetration e = |y| - (y_max - d_c) (k_c [N/m], c_c [N s/m]), implicit in v. The inelastic
   stop at +-y_max stays behind it.
+- **Load on a compliance** (``extra_mass``): a load of mass m_x [kg] on the rod through a
+  compliant coupling (a bracket, a flexible rod end) of stiffness k_x [N/m] and damping c_x
+  [N s/m], given as the load's natural frequency on it f_x = sqrt(k_x / m_x) / (2 pi) [Hz] and
+  damping ratio zeta_x = c_x / (2 sqrt(k_x m_x)):
+
+      F_load = k_x (y - x_l) + c_x (v - v_l),   m_x dv_l/dt = F_load,   dx_l/dt = v_l,
+
+  a two-mass load: at low frequency the rod carries M + m_x, near f_x the load resonates
+  against the piston. The piston's sub-step takes F_load with the load held and its stiffness
+  and damping implicit in w (as the gas spring); the load then follows implicitly in v_l from
+  the piston's new position and velocity. The model's candidate is a rigid extra mass.
 - **Load spring** (``load_spring``, on no list): a spring between the rod and the frame, k_s
   [N/m], relaxed at y_s [m], in F_a above and implicit in v like the gas spring.
 """
@@ -44,7 +60,48 @@ import math
 import numpy as np
 from numba import njit
 
-from jetpipe_ros.model.friction import friction_parameters, static_friction, stribeck_force
+#: Physical floors of the friction parameters: |F_C|, |F_S| >= 1 N, |v_s| >= 1e-4 m/s.
+FLOOR_FORCE = 1.0
+FLOOR_STRIBECK = 1e-4
+#: Rows of the planes: breakaway, Stribeck velocity, viscous, Coulomb; phases: entry, exit.
+F_S, V_S, F_V, F_C = range(4)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def friction_parameters(planes: np.ndarray, direction: float, p1: float, p2: float
+                        ) -> tuple[float, float, float, float]:
+    """Signed (F_S [N], v_s [m/s], F_v [N s/m], F_C [N]) for motion in ``direction`` (+1 exit,
+    -1 entry) at chamber pressures ``p1``, ``p2`` [Pa]; ``planes`` (2, 4, 3) = [entry, exit] x
+    [F_S, v_s, F_v, F_C] x [c0, c1, c2] (module docstring)."""
+    exit_ = direction > 0.0
+    a = p1 / 1e5
+    b = p2 / 1e5
+    if (exit_ and not a > b) or (not exit_ and not b > a):
+        a = b = (a + b) / 2.0
+    k = 1 if exit_ else 0
+    sign = 1.0 if exit_ else -1.0
+    c = planes[k]
+    f_s = sign * max(sign * (c[F_S, 0] + c[F_S, 1] * a + c[F_S, 2] * b), FLOOR_FORCE)
+    v_s = sign * max(sign * (c[V_S, 0] + c[V_S, 1] * a + c[V_S, 2] * b), FLOOR_STRIBECK)
+    f_v = max(c[F_V, 0] + c[F_V, 1] * a + c[F_V, 2] * b, 0.0)
+    f_c = sign * max(sign * (c[F_C, 0] + c[F_C, 1] * a + c[F_C, 2] * b), FLOOR_FORCE)
+    return f_s, v_s, f_v, f_c
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def stribeck_force(v: float, f_s: float, v_s: float, f_c: float) -> float:
+    """Eq. 18 without its viscous term [N] at velocity ``v`` [m/s]."""
+    return f_c + (f_s - f_c) * math.exp(-(v / v_s) ** 2)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def static_friction(f_applied: float, f_s: float) -> float:
+    """Eq. 15 at rest [N]: what balances ``f_applied`` [N], at most |``f_s``|."""
+    if f_applied > abs(f_s):
+        return abs(f_s)
+    if f_applied < -abs(f_s):
+        return -abs(f_s)
+    return f_applied
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -158,7 +215,7 @@ def bristles(v: float, z: float, f_a: float, planes: np.ndarray, p1: float, p2: 
 @njit(cache=True, error_model="numpy", inline="always")
 def directional_levels(planes: np.ndarray, v: float, p1: float, p2: float
                        ) -> tuple[float, float, float, float]:
-    """The pinned Stribeck curve's magnitude |F_st(v)| [N] in the exit and the entry direction
+    """The Stribeck curve (Eq. 18)'s magnitude |F_st(v)| [N] in the exit and the entry direction
     at velocity ``v`` [m/s] and pressures ``p1``, ``p2`` [Pa], and both directions' viscous
     coefficients F_v [N s/m]: (g_exit, g_entry, f_v_exit, f_v_entry)."""
     f_s, v_s, f_v_exit, f_c = friction_parameters(planes, 1.0, p1, p2)

@@ -13,12 +13,12 @@ from typing import Any
 
 import numpy as np
 
-from jetpipe_ros.model.actuator import REGULATOR_KEYS, replay_command
 from jetpipe_ros.model import ModelParams, Trace
-from jetpipe_ros.model import kernel as k
-from jetpipe_ros.model.chamber import chamber_volumes
-from jetpipe_ros.model.flow import GAMMA_AIR
+from jetpipe_ros.model.actuator import REGULATOR_KEYS, replay_command
+from jetpipe_ros.model.kernel import N_OUT
 from jetpipe_ros.plant import constants as s
+from jetpipe_ros.plant.air import GAMMA_AIR
+from jetpipe_ros.plant.chambers import volumes
 from jetpipe_ros.plant.constants import PlantConstants, build_constants
 from jetpipe_ros.plant.loop import advance
 from jetpipe_ros.plant.sensors import measure
@@ -38,7 +38,7 @@ class Plant:
         self._rng = np.random.default_rng(self.params["sensors.seed"])
         self._one_u = np.zeros(1)
         self._one_f = np.zeros(1)
-        self._one_out = np.zeros((1, k.N_OUT))
+        self._one_out = np.zeros((1, N_OUT))
         self._zero_noise = np.zeros((1, 3))
         self.reset()
 
@@ -51,7 +51,7 @@ class Plant:
         """Return to the initial state: at rest, valve at rest, pressures as configured."""
         c = self.constants
         p = self.params
-        x = np.zeros(s.VALVE + c.valve_c.shape[0])
+        x = np.zeros(s.VALVE + s.N_VALVE)
         x[s.Y] = min(max(p["mechanics.initial_position"], -c.y_max), c.y_max)
         x[s.STUCK] = 1.0
         # The seal relaxed: one reversal point, here, without friction.
@@ -63,13 +63,22 @@ class Plant:
         x[s.SENSOR1] = x[s.P1]
         x[s.SENSOR2] = x[s.P2]
         x[s.POSITION] = x[s.Y]
+        x[s.LOAD] = x[s.Y]
         self.ring = np.zeros(c.delay_whole + 2)
+        self.line = self._line()
+
+    def _line(self) -> np.ndarray:
+        """The line delay's history at rest: the present pressures, no flow."""
+        line = np.zeros((self.constants.line_size, 4))
+        line[:, s.LINE_P1] = self.state[s.P1]
+        line[:, s.LINE_P2] = self.state[s.P2]
+        return line
 
     def _set_pressures(self, p1: float, p2: float, t1: float, t2: float) -> None:
         """Fill the chambers to ``p1``, ``p2`` [Pa] at temperatures ``t1``, ``t2`` [K]."""
         c = self.constants
         x = self.state
-        vols = chamber_volumes(x[s.Y], c.area, c.v01, c.v02)
+        vols = volumes(x[s.Y], c.area, c.v01, c.v02)
         for m, e, p, pi, t, vol in ((s.M1, s.E1, p1, s.P1, t1, vols[0]),
                                     (s.M2, s.E2, p2, s.P2, t2, vols[1])):
             x[pi] = p
@@ -111,14 +120,17 @@ class Plant:
         """
         spec = self.spec.with_values(changes)
         constants = build_constants(spec)
-        state, ring = self.state, self.ring
-        if ring.shape[0] != constants.delay_whole + 2:
+        state, ring, line = self.state, self.ring, self.line
+        if constants.delay != self.constants.delay:
             state = state.copy()
             state[s.VALVE:] = 0.0
             state[s.HEAD] = 0.0
             ring = np.zeros(constants.delay_whole + 2)
         temperatures = self.temperatures
+        renew = line.shape[0] != constants.line_size
         self.spec, self.constants, self.state, self.ring = spec, constants, state, ring
+        if renew:
+            self.line = self._line()
         p = spec.params
         if p["chamber.regulated"] and any(key in changes for key in REGULATOR_KEYS):
             self.state = state = state.copy()
@@ -127,8 +139,10 @@ class Plant:
             state[s.V] = 0.0
             state[s.STUCK] = 1.0
             state[s.SEAL_N], state[s.SEAL], state[s.SEAL + 1] = 1.0, state[s.Y], 0.0
+            state[s.LOAD], state[s.LOAD + 1] = state[s.Y], 0.0
             self._set_pressures(p["chamber.initial_pressure_1"], p["chamber.initial_pressure_2"],
                                 *temperatures)
+            self.line = self._line()
 
     def _noise(self, n: int) -> np.ndarray:
         if self.constants.sigma_p == 0.0 and self.constants.sigma_y == 0.0:
@@ -137,7 +151,7 @@ class Plant:
 
     def outputs(self) -> np.ndarray:
         """Outputs (N_OUT,) of the current state, with fresh sensor noise."""
-        out = np.zeros(k.N_OUT)
+        out = np.zeros(N_OUT)
         measure(self.constants, self.state, self._noise(1)[0], out)
         return out
 
@@ -148,7 +162,7 @@ class Plant:
         """
         self._one_u[0] = u
         self._one_f[0] = f_load
-        advance(self.constants, self.state, self.ring, self._one_u, self._one_f,
+        advance(self.constants, self.state, self.ring, self.line, self._one_u, self._one_f,
                 self._noise(1), self._one_out)
         return self._one_out[0]
 
@@ -158,8 +172,8 @@ class Plant:
         if not np.all(np.isfinite(u)):
             raise ValueError("valve command contains NaN or infinite values")
         fl = np.array(np.broadcast_to(f_load, u.shape), dtype=float)
-        out = np.empty((u.shape[0], k.N_OUT))
-        advance(self.constants, self.state, self.ring, u, fl, self._noise(len(u)), out)
+        out = np.empty((u.shape[0], N_OUT))
+        advance(self.constants, self.state, self.ring, self.line, u, fl, self._noise(len(u)), out)
         return out
 
 

@@ -9,7 +9,7 @@ u = d (y - x_r) >= 0 [m],
     F = F_r + d A phi(u / L),   phi(s) = (1 + c) s / (c + s) for s < 1, 1 beyond,
 
 until it reaches the sliding level d g_d(v) of its direction, where it stays while the piston
-slides (g_exit, g_entry [N]: the plant's pinned Stribeck curve of each direction). L [m] is the
+slides (g_exit, g_entry [N]: the plant's Stribeck curve, Eq. 18, of each direction). L [m] is the
 length over which a full swing builds up and c [-] the knee: phi rises steeply at first
 (phi'(0) = (1 + c) / c) and approaches the level slowly, as the records do (the sign flips
 within about 0.1 mm, the level is reached after 0.2-1.7 mm). The swing A = g_exit(0) + g_entry(0)

@@ -1,15 +1,18 @@
-"""The plant's sensors: a second-order pressure transducer with gain error and offsets, and noise.
+"""The plant's sensors: a second-order, nonlinear pressure transducer with offsets, and noise.
 
-- **Second-order pressure sensor** (``sensor_second_order``): each transducer (its diaphragm
-  and the gas in its port) reads the chamber pressure p through
+- **Second-order nonlinear pressure sensor** (``sensor_second_order``): each transducer (its
+  diaphragm and the gas in its port) reads the chamber pressure p through
 
-      s'' = w_n^2 (p - s) - 2 zeta w_n s',   p_meas,i = (1 + e) s_i + o_i
+      s'' = w_n^2 (p - s) - 2 zeta w_n s',
+      p_meas,i = s_i + o_i + 4 N x_i (1 - x_i),   x_i = (s_i - p_0) / P,
 
-  with w_n = 2 pi f_n [rad/s], zeta [-], a common gain error e [-] and an offset o_i [Pa] of
-  its own per sensor. Discretised exactly at the sub-step (zero-order hold on p over the
-  sub-step), so a pressure held over whole samples is read exactly as
-  ``scipy.signal.lfilter`` of the same transfer function discretised at the sample time. The
-  model's candidate is a first-order lag with one bias and a drift for both sensors.
+  with w_n = 2 pi f_n [rad/s], zeta [-], an offset o_i [Pa] of its own per sensor and a bow
+  nonlinearity N [Pa] (the terminal-point nonlinearity of a data sheet: zero at both ends of
+  the span p_0 = 1 bar to p_0 + P = 11 bar absolute, 0-10 bar gauge, N at mid-span). The
+  dynamics are discretised exactly at the sub-step (zero-order hold on p over the sub-step), so
+  a pressure held over whole samples is read exactly as ``scipy.signal.lfilter`` of the same
+  transfer function discretised at the sample time. The model's candidate is a first-order lag
+  with biases, a gain linear in p and a drift; no candidate bends the reading with pressure.
 - **Position transducer with a filter** (``position_filter``, on no list): the reading passes
   two equal first-order stages in series (a conditioning filter, critically damped)
 
@@ -36,6 +39,14 @@ from jetpipe_ros.plant.constants import (FRICTION, P1, P2, POSITION, SENSOR1, SE
                                          UCMD, UEQ, V, Y, PlantConstants)
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _reading(c: PlantConstants, s: float) -> float:
+    """The transducer's reading [Pa] of its diaphragm's pressure ``s`` [Pa], before its offset:
+    s + 4 N x (1 - x), x = (s - p_0) / P (module docstring)."""
+    x = (s - c.sensor_low) / c.sensor_span
+    return s + 4.0 * c.sensor_bow * x * (1.0 - x)
+
+
 @njit(cache=True, error_model="numpy")
 def measure(c: PlantConstants, x: np.ndarray, noise: np.ndarray, out: np.ndarray) -> None:
     """Write the outputs of state ``x`` into ``out`` (the model's layout,
@@ -51,8 +62,8 @@ def measure(c: PlantConstants, x: np.ndarray, noise: np.ndarray, out: np.ndarray
     out[OUT_UEQ] = x[UEQ]
     out[OUT_Y_MEAS] = (x[POSITION] if c.position_filter else x[Y]) + c.sigma_y * noise[0]
     if c.sensor:
-        out[OUT_P1_MEAS] = c.sensor_gain * x[SENSOR1] + c.sensor_offset_1 + c.sigma_p * noise[1]
-        out[OUT_P2_MEAS] = c.sensor_gain * x[SENSOR2] + c.sensor_offset_2 + c.sigma_p * noise[2]
+        out[OUT_P1_MEAS] = _reading(c, x[SENSOR1]) + c.sensor_offset_1 + c.sigma_p * noise[1]
+        out[OUT_P2_MEAS] = _reading(c, x[SENSOR2]) + c.sensor_offset_2 + c.sigma_p * noise[2]
     else:
         out[OUT_P1_MEAS] = x[P1] + c.sigma_p * noise[1]
         out[OUT_P2_MEAS] = x[P2] + c.sigma_p * noise[2]

@@ -16,6 +16,7 @@ from typing import Any
 from jetpipe_ros.model import ModelParams, ParameterError
 from jetpipe_ros.model.params import ParamSpec, check_value
 from jetpipe_ros.plant.errors import PlantError
+from jetpipe_ros.plant.valve import EQ8, PAPER_TERMS
 
 
 def _p(name: str, default: float, description: str, unit: str = "", low: float | None = None,
@@ -71,17 +72,20 @@ EFFECT_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
         _p("natural_frequency", 50.0, "Pressure transducer natural frequency f_n", "Hz",
            1.0, 1e5),
         _p("damping_ratio", 0.7, "Pressure transducer damping ratio zeta", "", 0.05, 5.0),
-        _p("gain_error", 0.01, "Pressure transducers' gain error e", "", -0.2, 0.2),
+        _p("nonlinearity", 5e3, "Pressure transducers' bow nonlinearity N at mid-span (0-10 "
+           "bar gauge)", "Pa", -1e5, 1e5),
         _p("offset_1", 5e3, "Chamber 1 transducer offset o_1", "Pa", -1e5, 1e5),
         _p("offset_2", -2e3, "Chamber 2 transducer offset o_2", "Pa", -1e5, 1e5),
     ),
     "transport_delay": (
-        _p("delay", 2.7e-3, "Valve transport delay beyond valve.delay, continuous", "s",
-           0.0, 0.05),
+        _p("delay", 2.7e-3, "One-way wave time tau_l of the lines between the valve and the "
+           "chambers (beyond valve.delay): the flow arrives tau_l late, the port sees the "
+           "pressure tau_l late", "s", 0.0, 0.05),
     ),
-    "second_order_lag": (
-        _p("natural_frequency", 40.0, "Extra valve lag natural frequency f_n", "Hz", 0.5, 1e4),
-        _p("damping_ratio", 0.7, "Extra valve lag damping ratio zeta", "", 0.05, 5.0),
+    "flow_lag": (
+        _p("natural_frequency", 40.0, "Natural frequency f_n of the lag on each chamber's flow",
+           "Hz", 0.5, 1e4),
+        _p("damping_ratio", 0.7, "Damping ratio zeta of that lag", "", 0.05, 5.0),
     ),
     "supply_droop": (
         _p("set_pressure", 8e5, "Regulator set pressure p_set (absolute)", "Pa", 2e5, 1e6),
@@ -96,11 +100,20 @@ EFFECT_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
            1e-7, 0.1),
     ),
     "extra_mass": (
-        _p("mass", 1.5, "Moving mass beyond mechanics.mass (negative: lighter)", "kg",
-           -50.0, 50.0),
+        _p("mass", 1.5, "Load mass m_x on the rod through a compliant coupling", "kg",
+           1e-3, 50.0),
+        _p("frequency", 60.0, "Natural frequency f_x = sqrt(k_x / m_x) / (2 pi) of the load on "
+           "its coupling", "Hz", 1.0, 1e4),
+        _p("damping_ratio", 0.15, "Damping ratio zeta_x = c_x / (2 sqrt(k_x m_x)) of the "
+           "coupling", "", 0.0, 5.0),
     ),
     "null_offset": (
         _p("offset", 0.1, "Valve null offset u_0 on the equivalent voltage", "V", -0.5, 0.5),
+    ),
+    "flow_map_shape": (
+        _p("amplitude", 3e-4, "Amplitude A of the flow map's departure from Eq. 8 (within the "
+           "fit's 0.5 g/s)", "kg/s", -5e-4, 5e-4),
+        _p("phase", 0.0, "Phase phi of the departure along the pressure", "rad", -7.0, 7.0),
     ),
     "pressure_dependent_gain": (
         _p("slope", 0.3, "Flow gain slope k: factor 1 + k (p - p_mid) / p_s", "", -0.9, 0.9),
@@ -161,20 +174,18 @@ class PlantSpec:
             except ParameterError as exc:
                 raise PlantError(str(exc)) from exc
         object.__setattr__(self, "effects", effects)
-        if self.mass <= 0.0:
-            raise PlantError(f"extra_mass: the moving mass {self.mass:g} kg is not positive")
+        coefficients = self.params["flow.coefficients"]
+        if any(abs(c - EQ8[term]) > 1e-12 * max(abs(c), 1.0)
+               for c, term in zip(coefficients, PAPER_TERMS)):
+            raise PlantError("flow.coefficients: the plant's flow map is the paper's Eq. 8 "
+                             "(jetpipe_ros.plant.valve.EQ8); an individual valve differs by "
+                             "flow.gain_charge and flow.gain_discharge")
         if "elastoplastic_friction" in effects and "measured_seal" in effects:
             raise PlantError("elastoplastic_friction and measured_seal are both friction laws "
                              "of the piston: switch on one")
         hysteresis = effects.get("weighted_play_hysteresis")
         if hysteresis and sum(hysteresis[f"weight_{i}"] for i in (1, 2, 3)) <= 0.0:
             raise PlantError("weighted_play_hysteresis: the weights sum to 0")
-
-    @property
-    def mass(self) -> float:
-        """Moving mass [kg]: mechanics.mass plus any extra_mass."""
-        extra = self.effects.get("extra_mass", {}).get("mass", 0.0)
-        return self.params["mechanics.mass"] + extra
 
     def with_effect(self, name: str, **values: float) -> PlantSpec:
         """A copy with real effect ``name`` on (or its parameters changed)."""

@@ -57,6 +57,7 @@ from jetpipe_ros.fileio import to_json, write_files, write_text
 from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError, simulate
 from jetpipe_ros.model.params import end_stop_volumes
 from jetpipe_ros.plant import REAL_EFFECTS, PlantSpec
+from jetpipe_ros.plant.effects import flow_map_shape
 from jetpipe_ros.plant import campaign_dataset as on_plant
 from jetpipe_ros.plant import simulate as simulate_plant
 from jetpipe_ros.plant.logger import log, without_velocity
@@ -100,7 +101,7 @@ PLANT_PAIRS = (("wall_heat_exchange", "sensor_second_order"), ("transport_delay"
 WEAK: dict[str, Callable[[np.random.Generator], dict]] = {
     "sensor_second_order": lambda r: {
         "natural_frequency": math.exp(r.uniform(math.log(60.0), math.log(100.0))),
-        "damping_ratio": float(r.uniform(0.7, 1.0)), "gain_error": 0.0,
+        "damping_ratio": float(r.uniform(0.7, 1.0)), "nonlinearity": 0.0,
         "offset_1": float(r.choice([-1.0, 1.0]) * r.uniform(1e3, 3e3)),
         "offset_2": float(r.choice([-1.0, 1.0]) * r.uniform(1e3, 3e3))},
     "iso6358_leak": lambda r: {"cross_conductance": 0.0,
@@ -179,6 +180,7 @@ class Case:
     seed: int
     deviations: dict = field(default_factory=dict)  #: raw parameter changes (the bench)
     knob_truth: dict = field(default_factory=dict)  #: the calibration factors they amount to
+    bench_effects: dict = field(default_factory=dict)  #: the plant bench's own (flow map shape)
     visible: bool = True  #: the effect shows in the data (else ``none`` is right too)
     deviated: bool = False  #: the parameter deviations show in the data
     verdict: str = ""
@@ -229,7 +231,7 @@ class Case:
     def bench(self) -> ModelParams | PlantSpec:
         """The nominal parameters moved by the deviations, without the effect."""
         params = ModelParams().with_values(self.deviations)
-        return PlantSpec(params) if self.source == "plant" else params
+        return PlantSpec(params, self.bench_effects) if self.source == "plant" else params
 
     def truth_model(self) -> ModelParams | PlantSpec:
         """The model (or plant) the data were recorded on."""
@@ -254,11 +256,16 @@ def _draw(kind: str, source: str, rng: np.random.Generator) -> dict[str, dict]:
     return out
 
 
-def make_cases(n: int, seed: int, deviate: bool = True, source: str = "plant") -> list[Case]:
+def make_cases(n: int, seed: int, deviate: bool = True, source: str = "plant",
+               shape: bool = False) -> list[Case]:
     """``n`` cases cycling through :data:`KINDS` of ``source`` (with parameter deviations,
-    ``none`` twice per cycle), sizes drawn with ``seed``."""
+    ``none`` twice per cycle), sizes drawn with ``seed``; with ``shape`` every plant bench's
+    flow map departs from Eq. 8 within the fit's error (drawn apart: the cases are otherwise
+    those without it)."""
     if source not in SOURCES:
         raise ValueError(f"source must be one of {SOURCES}, got {source!r}")
+    if shape and source != "plant":
+        raise ValueError("a flow map of another shape is the plant's (source 'plant')")
     rng = np.random.default_rng(seed)
     kinds = KINDS[source]
     if deviate:
@@ -269,8 +276,10 @@ def make_cases(n: int, seed: int, deviate: bool = True, source: str = "plant") -
         effects = _draw(kind, source, rng)
         case_seed = int(rng.integers(1, 2**31 - 1))
         changes, knobs = deviations(rng, ModelParams()) if deviate else ({}, {})
+        bench = {"flow_map_shape": flow_map_shape(np.random.default_rng([seed, i]))} \
+            if shape else {}
         cases.append(Case(i, "parameters_only" if deviate and kind == "none" else kind, source,
-                          effects, case_seed, changes, knobs))
+                          effects, case_seed, changes, knobs, bench))
     return cases
 
 
@@ -422,7 +431,7 @@ def run_selfcheck(n: int, seed: int,
                   out_dir: Path | None = None, workers: int = 2,
                   progress: Callable[[str], None] = print, deviate: bool = True,
                   source: str = "plant", scheduler: str | None = None,
-                  restart: bool = False) -> dict:
+                  restart: bool = False, shape: bool = False) -> dict:
     """Run ``n`` cases; ``make_dataset(truth, root, seed)`` writes a noisy dataset to root.
 
     The cases run in parallel, one per task on the workers of a Dask cluster
@@ -432,13 +441,16 @@ def run_selfcheck(n: int, seed: int,
     stopped half-way and started again with the same configuration (``n``, ``seed``,
     ``source``, ``deviate``) computes only the cases left; another configuration there is
     refused unless ``restart``. A case that fails does not stop the others: they finish and are
-    kept, then :class:`SelfcheckError` names the failures.
+    kept, then :class:`SelfcheckError` names the failures. With ``shape`` every bench's flow map
+    departs from Eq. 8 within the fit's error (:func:`make_cases`).
     """
-    cases = make_cases(n, seed, deviate, source)
+    cases = make_cases(n, seed, deviate, source, shape)
     cases_dir = out_dir / "cases" if out_dir is not None else None
     done: dict[int, Case] = {}
     if cases_dir is not None:
         config = {"cases": n, "seed": seed, "truth": source, "deviations": deviate}
+        if shape:
+            config["flow_map_shape"] = True
         if isinstance(make_dataset, Logged):
             config.update(logger=make_dataset.logger, rate=make_dataset.rate)
         done = _configuration(cases_dir, config, restart)
@@ -483,6 +495,7 @@ def run_selfcheck(n: int, seed: int,
                              f"{kept}")
     summary = summarise([done[c.index] for c in cases], time.perf_counter() - began)
     summary["resumed"] = n - len(todo)
+    summary["flow_map_shape"] = shape
     if isinstance(make_dataset, Logged):
         summary["logged"] = make_dataset.describe()
     summary["ran_on"] = str(cluster)
@@ -601,8 +614,11 @@ def render(summary: dict) -> str:
     """The self-check as Markdown: headline figures, confusion matrix, parameter recovery."""
     dev = "with" if summary["deviations"] else "without"
     logged = f", logged at {summary['logged']}" if summary.get("logged") else ""
+    shape = ", every flow map of another shape than Eq. 8" if summary.get("flow_map_shape") \
+        else ""
     lines = [f"# jetpipe selfcheck: {summary['cases']} cases in {summary['seconds']:.0f} s, "
-             f"data from the {summary['source']}, {dev} parameter deviations{logged}", "",
+             f"data from the {summary['source']}, {dev} parameter deviations{shape}{logged}",
+             "",
              f"- top-1 accuracy: {100 * summary['top1_accuracy']:.0f} % "
              f"({100 * summary['top1_interval'][0]:.0f}-{100 * summary['top1_interval'][1]:.0f} "
              f"%, {100 * summary['confidence_level']:.0f} % Wilson interval)"]
