@@ -25,6 +25,7 @@ from jetpipe_ros.plant import (EFFECT_PARAMS, REAL_EFFECTS, Plant, PlantError, P
                                campaign_dataset, simulate)
 from jetpipe_ros.plant import constants as layout
 from jetpipe_ros.plant.chambers import gap_flow, iso6358_flow
+from jetpipe_ros.plant.effects import flow_map_shape
 from jetpipe_ros.plant.mechanics import friction_parameters as plant_friction
 from jetpipe_ros.plant.valve import EQ8, PAPER_TERMS, jet_flow, valve_inflow
 
@@ -732,7 +733,12 @@ def test_spec_rejects_what_it_cannot_simulate():
 
 def test_real_effects_sample_valid_parameters():
     rng = np.random.default_rng(1)
-    assert set(REAL_EFFECTS) == set(EFFECT_PARAMS)
+    # every effect is a case's truth but the bench's flow map shape (drawn with the bench)
+    assert set(REAL_EFFECTS) | {"flow_map_shape"} == set(EFFECT_PARAMS)
+    for _ in range(20):
+        values = flow_map_shape(rng)
+        assert set(values) == {s.name for s in EFFECT_PARAMS["flow_map_shape"]}
+        PlantSpec().with_effect("flow_map_shape", **values)
     unlisted = {n for n, e in REAL_EFFECTS.items() if e.listed == "unlisted"}
     assert unlisted == {"null_offset", "pressure_dependent_gain", "end_stop_cushion",
                         "load_spring", "position_filter"}
