@@ -72,6 +72,19 @@ def _lagged(c: PlantConstants, x: np.ndarray, i: int, q: float, p: float) -> flo
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _delayed(line: np.ndarray, slot: int, delay: float, a: int, b: int) -> tuple[float, float]:
+    """Columns ``a`` and ``b`` of the line's history as they were ``delay`` sub-steps before
+    row ``slot`` (the row being written), interpolated between the rows around that time."""
+    n = line.shape[0]
+    back = int(math.floor(delay))
+    theta = delay - back
+    old = (slot - back - 1 + n) % n
+    new = (slot - back + n) % n
+    return (theta * line[old, a] + (1.0 - theta) * line[new, a],
+            theta * line[old, b] + (1.0 - theta) * line[new, b])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _valve_flows(c: PlantConstants, x: np.ndarray, line: np.ndarray, u_eq: float
                  ) -> tuple[float, float]:
     """The valve's flows [kg/s] reaching chambers 1 and 2 over the sub-step when they do not
@@ -84,13 +97,8 @@ def _valve_flows(c: PlantConstants, x: np.ndarray, line: np.ndarray, u_eq: float
     if c.line:
         line[slot, LINE_P1] = p1
         line[slot, LINE_P2] = p2
-        # The port's pressure of line_delay sub-steps ago, between the rows around it.
-        back = int(math.floor(c.line_delay))
-        theta = c.line_delay - back
-        old = (slot - back - 1 + n) % n
-        new = (slot - back + n) % n
-        p1 = theta * line[old, LINE_P1] + (1.0 - theta) * line[new, LINE_P1]
-        p2 = theta * line[old, LINE_P2] + (1.0 - theta) * line[new, LINE_P2]
+        # The port's pressure of line_delay sub-steps ago.
+        p1, p2 = _delayed(line, slot, c.line_delay, LINE_P1, LINE_P2)
     q1 = valve_inflow(u_eq, p1, x[SUPPLY], c.gain_charge, c.gain_discharge, c.gain_slope,
                       c.shape, c.shape_phase)
     q2 = valve_inflow(-u_eq, p2, x[SUPPLY], c.gain_charge, c.gain_discharge, c.gain_slope,
@@ -103,12 +111,7 @@ def _valve_flows(c: PlantConstants, x: np.ndarray, line: np.ndarray, u_eq: float
         line[slot, LINE_Q1] = q1
         line[slot, LINE_Q2] = q2
         # What left the valve line_delay sub-steps ago, each row's flow held over its sub-step.
-        back = int(math.floor(c.line_delay))
-        theta = c.line_delay - back
-        old = (slot - back - 1 + n) % n
-        new = (slot - back + n) % n
-        q1 = theta * line[old, LINE_Q1] + (1.0 - theta) * line[new, LINE_Q1]
-        q2 = theta * line[old, LINE_Q2] + (1.0 - theta) * line[new, LINE_Q2]
+        q1, q2 = _delayed(line, slot, c.line_delay, LINE_Q1, LINE_Q2)
         x[LINE_HEAD] = (slot + 1) % n
         # A chamber at or below the atmosphere feeds no outflow (the gas in transit is
         # exhausted anyway): without this the line kept emptying a chamber to vacuum.
