@@ -92,6 +92,9 @@ def test_synthetic_record_recovers_its_maxwell_slip_parameters(tmp_path):
     for row in (1, 2):
         truth = np.interp(fit.profile[0, inside], PROFILE[0], PROFILE[row])
         assert np.max(np.abs(fit.profile[row, inside] - truth)) < 0.03, row
+        # Its amplitude too: the fitted ripple against the true one, a slope within 10 %.
+        slope = np.polyfit(truth - 1.0, fit.profile[row, inside] - 1.0, 1)[0]
+        assert slope == pytest.approx(1.0, abs=0.1), (row, slope)
 
 
 def test_real_record_presliding_within_its_measured_range():
