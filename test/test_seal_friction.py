@@ -310,3 +310,26 @@ def test_a_dataset_without_friction_tests_is_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "dataset.yaml" in err and "friction test" in err
     assert not (tmp_path / "out").exists()
+
+
+def test_the_diagnosis_force_balance_sees_the_bore_profile(tmp_path):
+    """The diagnosis's equation error of the force balance (an ``unlisted`` answer's evidence)
+    takes the model's Stribeck friction with the bore profile of ``--params`` at the measured
+    position: exit samples 1.3 times, entry samples 0.8 times the level without it."""
+    from jetpipe_ros.campaign import default_campaign, run_campaign_offline
+    from jetpipe_ros.diagnosis.data import prepare
+    from jetpipe_ros.diagnosis.residuals import force_error
+    from jetpipe_ros.model import ModelParams
+
+    profile = {"friction.profile.position": [-0.02, 0.02],
+               "friction.profile.exit": [1.3, 1.3], "friction.profile.entry": [0.8, 0.8]}
+    plan = default_campaign().select(("prbs_multilevel", "square_3V_0p97Hz"))
+    root = run_campaign_offline(ModelParams(profile), plan, tmp_path / "data", seed=2)
+    prepared = prepare(read_dataset(root))
+    rec = next(r for r in prepared.records if r.name == "prbs_multilevel")
+    _, sliding, without, _ = force_error(ModelParams(), rec, prepared.dt)
+    _, _, scaled, _ = force_error(ModelParams(profile), rec, prepared.dt)
+    direction = np.sign(rec.v[sliding])
+    assert (direction > 0).sum() > 100 and (direction < 0).sum() > 100
+    factor = np.where(direction > 0, 1.3, 0.8)
+    assert np.allclose(scaled[sliding], factor * without[sliding], rtol=1e-9, atol=1e-9)

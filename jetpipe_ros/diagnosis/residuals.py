@@ -42,7 +42,7 @@ from jetpipe_ros.diagnosis.localize import REGIMES, regimes
 from jetpipe_ros.model import Actuator, ModelParams, build_constants, kernel
 from jetpipe_ros.model.chamber import chamber_volumes
 from jetpipe_ros.model.flow import P_ATM
-from jetpipe_ros.model.friction import friction_parameters, stribeck_force
+from jetpipe_ros.model.friction import scaled_parameters, stribeck_force
 
 #: Sliding: |v| above this [m/s] (the force balance is indeterminate while stuck).
 SLIDING = 5e-3
@@ -148,7 +148,8 @@ def chamber_errors(params: ModelParams, rec: Record, dt: float) -> tuple[np.ndar
 def force_error(params: ModelParams, rec: Record, dt: float
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Force-balance error [N] while sliding, the mask of sliding samples, and the model's
-    Stribeck and viscous friction there [N]."""
+    Stribeck (scaled by the bore profile at the measured position) and viscous friction there
+    [N]."""
     c = build_constants(params)
     y = rec.smooth["y"]
     v = rec.v
@@ -159,7 +160,8 @@ def force_error(params: ModelParams, rec: Record, dt: float
     static = np.zeros(rec.t.size)
     viscous = np.zeros(rec.t.size)
     for k in np.flatnonzero(sliding):
-        f_s, v_s, f_v, f_c = friction_parameters(c.planes, np.sign(v[k]), p1[k], p2[k])
+        f_s, v_s, f_v, f_c = scaled_parameters(c.planes, c.profile, np.sign(v[k]), y[k],
+                                               p1[k], p2[k])
         static[k] = stribeck_force(v[k], f_s, v_s, f_c)
         viscous[k] = f_v * v[k]
         err[k] = c.mass * a[k] - (c.area * (p1[k] - p2[k]) - rec.f_load[k] - static[k]
