@@ -105,6 +105,12 @@ class Prepared:
 
     #: corrections made to the records (units, time base, lost rows, alignment), in words
     corrections: list[str] = field(default_factory=list)
+    #: directions of the calibration knobs (columns, in the natural logs of their factors)
+    #: that the training records leave free but the held-out predictions depend on: fitted on
+    #: all records in every fit of the knobs (:mod:`nuisance`); None: none
+    nuisance: np.ndarray | None = None
+    #: what diagnosis.json says of them (``calibration.nuisance``)
+    nuisance_report: dict = field(default_factory=dict)
 
     def seconds(self, role: str) -> float:
         """Total length of the ``role`` samples [s]."""

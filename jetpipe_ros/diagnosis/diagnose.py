@@ -30,10 +30,10 @@ from jetpipe_ros.diagnosis.alignment import Alignment, align
 from jetpipe_ros.diagnosis.calibration import CALIBRATION
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate, effect_of
 from jetpipe_ros.diagnosis.data import Prepared, prepare, swapped
-from jetpipe_ros.diagnosis.fit import BUDGET, Fit, stacked, uncertainty
-from jetpipe_ros.diagnosis.jobs import IN_PROCESS, Fitter, Job, Workers
+from jetpipe_ros.diagnosis.fit import BUDGET, Fit, stacked, uncertainty, with_nuisance
+from jetpipe_ros.diagnosis.jobs import IN_PROCESS, Fitter, Job, Workers, run_job
 from jetpipe_ros.diagnosis.localize import by_regime, frequency_response, position_error_pct
-from jetpipe_ros.diagnosis import residuals
+from jetpipe_ros.diagnosis import nuisance, residuals
 from jetpipe_ros.diagnosis.noise_floor import calibrate, twin
 from jetpipe_ros.diagnosis.placement import place, subsystem_gaps
 from jetpipe_ros.diagnosis.separation import (adopt, separating_experiment, stand_ins,
@@ -249,6 +249,23 @@ def visibility(prepared: Prepared, nominal: ModelParams, base_preds, cand: Candi
                            for s in rec.signals()), prepared.scale)
 
 
+def recalibrate(prepared: Prepared, nominal: ModelParams,
+                progress: Callable[[str], None]) -> Fit:
+    """The calibration knobs fitted on the training data (in this process); then the
+    directions of them that the training records leave free where the held-out ones depend on
+    them (:mod:`nuisance`) are set on ``prepared`` (its notes say which), fitted on all records
+    here and in every later fit of the knobs."""
+    cal = run_job(Job(nominal, (CAL,), CALIBRATION.start(), CALIBRATION_BUDGET), prepared,
+                  prepared)
+    prepared.nuisance, prepared.nuisance_report = nuisance.directions(prepared, nominal, cal)
+    said = nuisance.words(prepared.nuisance_report)
+    if said is None:
+        return cal
+    prepared.notes.append(said)
+    progress(f"{said} (held-out gap {cal.holdout.gap:.2f} % before)")
+    return with_nuisance(prepared, nominal, cal)
+
+
 def diagnose_dataset(dataset: Dataset, nominal: ModelParams | None = None,
                      workers: Workers = IN_PROCESS,
                      progress: Callable[[str], None] = lambda message: None) -> Diagnosis:
@@ -294,10 +311,10 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
     progress("how visible each candidate would be at its typical size")
     seen = {c.name: visibility(prepared, nominal, nom_all, c) for c in candidates}
 
+    progress(f"recalibrating the nominal parameters on the training data "
+             f"({len(CALIBRATION.knobs)} knobs)")
+    cal = recalibrate(prepared, nominal, progress)
     with Fitter(prepared, swapped(prepared), workers, progress) as fitter:
-        progress(f"recalibrating the nominal parameters on the training data "
-                 f"({len(CALIBRATION.knobs)} knobs; fits on {workers})")
-        (cal,) = fitter.run([Job(nominal, (CAL,), CALIBRATION.start(), CALIBRATION_BUDGET)])
         (cal_row,) = rank([cal], nom_hold, nom_windows, dt)
         progress(f"recalibrated: held-out gap {nom_hold.gap:.2f} % -> {cal.holdout.gap:.2f} % "
                  f"({', '.join(calibration.describe(cal.values[CAL])) or 'no knob off'})")
@@ -534,7 +551,8 @@ def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
         "schema": SCHEMA,
         "verdict": verdict_json,
         "calibration": {**_calibration_json(cal, cal_row, settled, nom_hold),
-                        "stderr": errors.get(CAL, {}), "stand_ins": swaps},
+                        "stderr": errors.get(CAL, {}), "stand_ins": swaps,
+                        "nuisance": prepared.nuisance_report},
         "gap": {"metric": METRIC, "nominal": nom_hold.gap, "augmented": aug_hold.gap,
                 "shrinkage": 1.0 - aug_hold.gap / nom_hold.gap if nom_hold.gap > 0 else 0.0,
                 "recalibrated": cal.holdout.gap, "on": "holdout", "paper_metrics": paper},

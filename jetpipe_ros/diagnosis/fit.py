@@ -9,6 +9,12 @@ then bounded least squares on the residual vector (trust-region reflective, each
 its column of the Jacobian: calibration knobs and an effect trade off along narrow valleys that
 an unscaled step crawls along). Every fit has a budget of model evaluations and keeps the best
 point it has seen.
+
+A fit of the calibration knobs then fits, on all records (training and held-out alike), the
+directions of them that the training records leave free but the held-out predictions depend on
+(:mod:`nuisance`, :attr:`data.Prepared.nuisance`; at most a few), the rest held: nuisance
+parameters, fitted alike for every model compared, so that no model wins or loses on the
+held-out data by where the training left them.
 """
 
 from __future__ import annotations
@@ -21,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
+from jetpipe_ros.diagnosis.calibration import CALIBRATION as CALIBRATION_GROUP
 from jetpipe_ros.diagnosis.calibration import NAME as CALIBRATION
 from jetpipe_ros.diagnosis.calibration import group
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, KnobGroup, effect_of
@@ -31,6 +38,9 @@ from jetpipe_ros.model import ModelParams
 
 GRID = 9
 BUDGET = 40
+#: Model evaluations of the nuisance directions' fit on all records (a few knobs, started
+#: where the training left them).
+NUISANCE_BUDGET = 8
 
 
 @dataclass
@@ -116,6 +126,11 @@ class _Objective:
         self.calls = 0
         self.best_cost = np.inf
         self.best_z: np.ndarray | None = None
+        offsets = np.cumsum([0] + self.sizes)
+        #: where the calibration knobs lie in the knob vector (None: not fitted here)
+        self.calibration = next((slice(int(o), int(o) + len(c.knobs))
+                                 for c, o in zip(self.candidates, offsets)
+                                 if c.name == CALIBRATION), None)
 
     def params(self, z: np.ndarray) -> ModelParams:
         p = self.nominal
@@ -169,13 +184,53 @@ def fit(prepared: Prepared, nominal: ModelParams, candidates: Sequence[KnobGroup
     except _BudgetSpent:
         pass
     z = obj.best_z if obj.best_z is not None else np.clip(start, 0.0, 1.0)
+    return _scored(obj, _nuisance_fitted(obj, z), began)
+
+
+def with_nuisance(prepared: Prepared, nominal: ModelParams, fitted: Fit) -> Fit:
+    """``fitted`` (which holds the calibration knobs) with the nuisance directions of
+    ``prepared`` fitted on all records, and scored again."""
+    began = time.perf_counter() - fitted.seconds
+    obj = _Objective(prepared, nominal, [group(g) for g in fitted.groups], budget=0)
+    obj.calls = fitted.evaluations
+    return _scored(obj, _nuisance_fitted(obj, fitted.z), began)
+
+
+def _scored(obj: _Objective, z: np.ndarray, began: float) -> Fit:
+    """The fit at the unit-scaled knobs ``z``, scored on the training and held-out data."""
+    prepared = obj.prepared
     params = obj.params(z)
     train = score(prepared, predict_all(params, prepared, "train"), "train")
     held = predict_all(params, prepared, "holdout")
-    return Fit(groups=tuple(c.name for c in candidates), values=obj.values(z), z=z, params=params,
-               train=train, holdout=score(prepared, held, "holdout"),
+    return Fit(groups=tuple(c.name for c in obj.candidates), values=obj.values(z), z=z,
+               params=params, train=train, holdout=score(prepared, held, "holdout"),
                holdout_windows=window_errors(prepared, held, "holdout"), evaluations=obj.calls,
                seconds=time.perf_counter() - began)
+
+
+def _nuisance_fitted(obj: _Objective, z: np.ndarray) -> np.ndarray:
+    """``z`` with the calibration knobs moved along the nuisance directions
+    (:attr:`data.Prepared.nuisance`) to fit all records, training and held-out, every other
+    knob held (``z`` itself when there are none or the calibration is not fitted here)."""
+    directions = obj.prepared.nuisance
+    if directions is None or obj.calibration is None:
+        return z
+    prepared, knobs = obj.prepared, obj.calibration
+
+    def at(a: np.ndarray) -> np.ndarray:
+        moved = z.copy()
+        moved[knobs] = CALIBRATION_GROUP.moved(z[knobs], directions @ a)
+        return moved
+
+    def residuals(a: np.ndarray) -> np.ndarray:
+        obj.calls += 1
+        return residual_vector(prepared, predict_all(obj.params(at(a)), prepared, None), None)
+
+    # Each direction is one standard deviation of what the records and the hardware's spread
+    # leave of it (nuisance.directions): unit scale, steps of a twentieth of it.
+    found = optimize.least_squares(residuals, np.zeros(directions.shape[1]), diff_step=0.05,
+                                   xtol=1e-3, ftol=1e-4, max_nfev=NUISANCE_BUDGET)
+    return at(found.x)
 
 
 def _grid_first_knob(obj: _Objective, base: np.ndarray | None = None) -> np.ndarray:

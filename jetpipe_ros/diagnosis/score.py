@@ -126,11 +126,11 @@ def score(prepared: Prepared, preds: Sequence[Prediction | None], role: str | No
                  count={s: counts[s] for s in present})
 
 
-def residual_vector(prepared: Prepared, preds: Sequence[Prediction | None], role: str,
+def residual_vector(prepared: Prepared, preds: Sequence[Prediction | None], role: str | None,
                     stride: int = 4) -> np.ndarray:
-    """Normalised residuals of the ``role`` samples (every ``stride``-th), each signal weighted
-    by 1/sqrt(its sample count) so that its sum of squares is the mean of the per-signal MSEs.
-    """
+    """Normalised residuals of the ``role`` samples (all for None; every ``stride``-th), each
+    signal weighted by 1/sqrt(its sample count) so that its sum of squares is the mean of the
+    per-signal MSEs."""
     parts: dict[str, list[np.ndarray]] = {s: [] for s in SIGNALS}
     for rec, pred in zip(prepared.records, preds):
         if pred is None:
