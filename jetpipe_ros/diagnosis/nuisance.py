@@ -80,13 +80,15 @@ def directions(prepared: Prepared, nominal: ModelParams,
 
 def words(report: dict) -> str | None:
     """The nuisance directions in words (None when there are none)."""
-    if not report["directions"]:
+    found = report["directions"]
+    if not found:
         return None
-    parts = [f"{' with '.join(d['knobs'])} (one standard deviation moves the held-out "
-             f"predictions by {d['heldout_over_noise']:.0f} times the sensors' noise)"
-             for d in report["directions"]]
-    return (f"the training records leave {'; '.join(parts)} free where the held-out ones depend "
-            f"on it: fitted on all records, alike in every model compared")
+    knobs = ", ".join(dict.fromkeys(k for d in found for k in d["knobs"]))
+    return (f"the training records leave {len(found)} direction{'s' if len(found) > 1 else ''}"
+            f" of the calibration knobs free ({knobs}) that the held-out predictions depend on "
+            f"(one standard deviation moves them by up to "
+            f"{found[0]['heldout_over_noise']:.0f} times the sensors' noise): fitted on all "
+            f"records, alike in every model compared")
 
 
 def _jacobian(prepared: Prepared, nominal: ModelParams, z: np.ndarray,
