@@ -3,7 +3,8 @@
 Steps, in order (each a function below, so a later step is a small addition to :func:`main`):
 
 1. the valve figures of the nominal model beside the paper's;
-2. start ``actuator_sim`` as the stand-in for real hardware: the nominal model with one
+2. compile the model's kernel (numba caches it: the nodes then load it), start
+   ``actuator_sim`` as the stand-in for real hardware: the nominal model with one
    unmodelled effect of docs/effects.md switched on (a 20 Hz valve lag) and sensor noise, in
    simulated time, lock-step; and the ``controller``;
 3. run the default campaign (``config/campaign.yaml``) with ``id_recorder`` into an MCAP bag;
@@ -37,7 +38,7 @@ from jetpipe_ros import fileio  # noqa: E402
 from jetpipe_ros.children import Nodes  # noqa: E402
 from jetpipe_ros.bag import export_bag  # noqa: E402
 from jetpipe_ros.dataset import COMPLETE, Dataset, read_dataset  # noqa: E402
-from jetpipe_ros.model import ModelParams, simulate  # noqa: E402
+from jetpipe_ros.model import ModelParams, compile_kernel, simulate  # noqa: E402
 from jetpipe_ros.model.valve import valve_tf  # noqa: E402
 from jetpipe_ros.package_data import share_file  # noqa: E402
 
@@ -60,6 +61,13 @@ def valve_figures(params: ModelParams) -> dict[str, float]:
     return {"peak_hz": w[np.argmax(np.abs(resp))] / (2 * np.pi), "overshoot": y.max() - 1,
             "rise_s": t[np.argmax(y >= 0.9)] - t[np.argmax(y >= 0.1)],
             "settling_s": t[outside[-1] + 1]}
+
+
+def compile_model() -> None:
+    """Compile the model's kernel here, with a word, before a node needs it (numba caches it:
+    a first compile on a fresh clone of a busy machine took longer than :data:`STARTUP`)."""
+    print("Compiling the model (first run only; cached) ...", flush=True)
+    print(f"  ready in {compile_kernel():.0f} s", flush=True)
 
 
 def print_valve_figures() -> None:
@@ -169,6 +177,8 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
 
     print_valve_figures()
+    print()
+    compile_model()
     nodes = Nodes(out / "logs", NAMESPACE)
     try:
         start_standin(nodes, out)

@@ -22,6 +22,7 @@ from pathlib import Path
 from jetpipe_ros import fileio
 from jetpipe_ros.children import Nodes
 from jetpipe_ros.nodes.gap_watch import Watch
+from jetpipe_ros.model import compile_kernel
 from jetpipe_ros.package_data import share_file
 
 NAMESPACE = "/showcase_twin"
@@ -39,6 +40,8 @@ def _line(watch: Watch, t0: float) -> tuple[int, str]:
 
 
 def run(out: Path) -> int:
+    print("Compiling the model (first run only; cached) ...", flush=True)
+    print(f"  ready in {compile_kernel():.0f} s", flush=True)
     nodes = Nodes(out / "logs", NAMESPACE)
     for name, args in (
         ("actuator_sim", [

@@ -5,7 +5,8 @@ integration loop in ``kernel``; parameters and effects in ``params``; the assemb
 ``actuator``.
 """
 
-from jetpipe_ros.model.actuator import Actuator, Trace, build_constants, simulate
+from jetpipe_ros.model.actuator import (Actuator, Trace, build_constants, compile_kernel,
+                                        simulate)
 from jetpipe_ros.model.errors import ParameterError
 from jetpipe_ros.model.params import EFFECTS, SPECS, ModelParams, load_params
 
@@ -18,5 +19,6 @@ __all__ = [
     "Trace",
     "build_constants",
     "load_params",
+    "compile_kernel",
     "simulate",
 ]

@@ -8,6 +8,7 @@ a test rig does (piston clamp, chamber regulators).
 
 from __future__ import annotations
 
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -256,6 +257,15 @@ class Actuator:
         kernel.advance(self.constants, self.state, self.ring, u, fl, drive,
                        self._noise(len(u)), out)
         return out
+
+
+def compile_kernel() -> float:
+    """Compile the kernel (or load it from numba's cache on disk, where a first compile leaves
+    it for every later process); returns the seconds it took. A process that starts nodes calls
+    it first, so the nodes load the kernel instead of compiling it within their start-up wait."""
+    start = time.perf_counter()
+    Actuator(ModelParams()).step(0.0)
+    return time.perf_counter() - start
 
 
 def simulate(params: ModelParams, u: np.ndarray, f_load: np.ndarray | float = 0.0) -> Trace:
