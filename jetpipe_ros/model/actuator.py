@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from jetpipe_ros.model import kernel
-from jetpipe_ros.model.flow import P_SUPPLY_NOMINAL
+from jetpipe_ros.model.flow import P_SUPPLY_NOMINAL, flow_lag_matrix
 from jetpipe_ros.model.friction import FRICTION_FORMS, MAXWELL_SLIP, STATIC, element_slips
 from jetpipe_ros.model.params import ModelParams
 from jetpipe_ros.model.valve import sample_valve
@@ -45,8 +45,12 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
     dt = p["integration.sample_time"]
     substeps = p["integration.substeps"]
     lag_hz = effect("valve_lag", "corner_frequency", 0.0)
-    second_order = lag_hz and p["effects.valve_lag.form"] == "second_order"
-    valve = sample_valve(p, dt, substeps, extra_lag_hz=lag_hz or None,
+    lag_form = p["effects.valve_lag.form"]
+    second_order = lag_hz and lag_form == "second_order"
+    flow_lag = (flow_lag_matrix(lag_hz, p["effects.valve_lag.damping_ratio"], dt / substeps)
+                if lag_hz and lag_form == "flow" else np.zeros((0, 3)))
+    valve = sample_valve(p, dt, substeps,
+                         extra_lag_hz=lag_hz if lag_hz and lag_form != "flow" else None,
                          extra_delay=effect("valve_delay", "delay", 0.0),
                          extra_lag_damping=p["effects.valve_lag.damping_ratio"]
                          if second_order else None)
@@ -79,6 +83,7 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
         p_supply=effect("supply_pressure", "pressure", P_SUPPLY_NOMINAL),
         line_conductance=p["effects.supply_pressure.line_conductance"] if line else 0.0,
         line_volume=p["effects.supply_pressure.line_volume"],
+        flow_lag=flow_lag,
         leak_cross=p["effects.leakage.cross_coefficient"] if laminar else 0.0,
         leak_atm=p["effects.leakage.atmosphere_coefficient"] if laminar else 0.0,
         orifice_cross=p["effects.leakage.cross_area"] if orifice else 0.0,

@@ -63,7 +63,7 @@ FRICTION_PLANES = {
 THERMAL_FORMS = ("polytropic", "heat_transfer")
 LEAKAGE_FORMS = ("laminar", "orifice", "power")
 SUPPLY_FORMS = ("constant", "line")
-LAG_FORMS = ("first_order", "second_order")
+LAG_FORMS = ("first_order", "second_order", "flow")
 DYNAMIC_FRICTION_FORMS = tuple(FRICTION_FORMS)
 FRICTION_UNITS = {"breakaway": "N", "stribeck_velocity": "m/s", "viscous": "N s/m", "coulomb": "N"}
 
@@ -184,11 +184,13 @@ _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
     "valve_delay": [_p("delay", 0.002, "Extra transport delay", "s", 0.0, 0.05)],
     "valve_lag": [
         _p("form", "first_order", "Lag on the valve's output: first order (a corner), or "
-           "second order (a natural frequency and a damping ratio)", choices=LAG_FORMS),
+           "second order (a natural frequency and a damping ratio); or flow: a second-order "
+           "lag on each chamber's mass flow after the flow map (a port or line between valve "
+           "and chamber)", choices=LAG_FORMS),
         _p("corner_frequency", 30.0, "Corner frequency (first order) or natural frequency "
-           "(second order) of the lag", "Hz", 0.5, 1000.0),
-        _p("damping_ratio", 0.7, "Damping ratio of the lag (form second_order)", "", 0.05,
-           5.0),
+           "(second order, flow) of the lag", "Hz", 0.5, 1000.0),
+        _p("damping_ratio", 0.7, "Damping ratio of the lag (forms second_order, flow)", "",
+           0.05, 5.0),
     ],
     "valve_hysteresis": [
         _p("half_width", 0.25, "Hysteresis loop half-width (mean play threshold)", "V",
