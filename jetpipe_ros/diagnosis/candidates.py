@@ -7,7 +7,9 @@ each contains the value at which the effect vanishes (zero delay, hysteresis, le
 the nominal supply and mass; a corner, wall heat conductance, bristle stiffness or supply line
 conductance high enough, or a pre-sliding displacement short enough, to be invisible), so a fit
 to data without the effect can land on "no effect". The forms the physics admits are candidates
-of their own, judged on held-out data like the effects: the valve lag of first order (a corner)
+of their own, judged on held-out data like the effects: the delay of the command, or of a line
+between valve and chambers (the flow arrives late, and the valve sees the chambers' pressures
+late); the valve lag of first order (a corner)
 or second order (a natural frequency and a damping ratio) on the valve's output, or of second
 order on each chamber's mass flow after the flow map (a port or a line; overdamped, zeta > 1,
 it is a first-order lag up to the frequencies it passes); the thermal effect as a polytropic
@@ -149,6 +151,8 @@ def effect_of(name: str) -> str:
 
 CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     Candidate("valve_delay", (Knob("delay", 0.0, 0.008, 0.0),), {"delay": 0.003}),
+    Candidate("valve_delay:line", (Knob("delay", 0.0, 0.008, 0.0),), {"delay": 0.003},
+              {"form": "line"}),
     Candidate("valve_lag:first_order", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),),
               {"corner_frequency": 30.0}, {"form": "first_order"}),
     Candidate("valve_lag:second_order", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),

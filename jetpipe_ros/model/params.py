@@ -64,6 +64,7 @@ THERMAL_FORMS = ("polytropic", "heat_transfer")
 LEAKAGE_FORMS = ("laminar", "orifice", "power")
 SUPPLY_FORMS = ("constant", "line")
 LAG_FORMS = ("first_order", "second_order", "flow")
+DELAY_FORMS = ("command", "line")
 DYNAMIC_FRICTION_FORMS = tuple(FRICTION_FORMS)
 FRICTION_UNITS = {"breakaway": "N", "stribeck_velocity": "m/s", "viscous": "N s/m", "coulomb": "N"}
 
@@ -181,7 +182,13 @@ MAX_KNOTS = 200
 
 #: Parameters of each effect (besides ``effects.<name>.enabled``). Typical sizes: docs/effects.md.
 _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
-    "valve_delay": [_p("delay", 0.002, "Extra transport delay", "s", 0.0, 0.05)],
+    "valve_delay": [
+        _p("form", "command", "Where the delay acts: on the valve command (command), or in a "
+           "line between valve and chambers (line: the valve sees each chamber's pressure "
+           "delay ago, and its flow reaches the chamber delay later)", choices=DELAY_FORMS),
+        _p("delay", 0.002, "Extra transport delay (form line: one way along the line)", "s",
+           0.0, 0.05),
+    ],
     "valve_lag": [
         _p("form", "first_order", "Lag on the valve's output: first order (a corner), or "
            "second order (a natural frequency and a damping ratio); or flow: a second-order "
