@@ -20,6 +20,8 @@ from jetpipe_ros.model.chamber import pressure_temperature_rates
 from jetpipe_ros.model.flow import chamber_inflow, flow_polynomial, orifice_flow, power_leak
 from jetpipe_ros.model.friction import friction_parameters
 from jetpipe_ros.model.params import FLOW_COEFFICIENTS
+from jetpipe_ros.plant import PlantSpec
+from jetpipe_ros.plant import simulate as plant_run
 from test_diagnosis import make_dataset
 
 P = ModelParams()
@@ -284,25 +286,68 @@ def test_flow_lag_follows_its_equations_after_the_flow_map():
     assert settled.p1[-1] == pytest.approx(simulate(LOCKED, step).p1[-1], abs=50.0)
 
 
-def test_flow_lag_is_recovered_and_chosen_over_the_spools_lag(tmp_path):
-    """A model record (the small campaign of test_diagnosis, sensor noise on) with a 25 Hz,
-    zeta 0.6 lag on the chamber flows: the candidate valve_lag:flow, fitted from its grid,
-    recovers the frequency within 4 % and the damping within 0.06 (the self-check's model
-    truths give a median parameter error of 0.3 %; this leaves room for another noise seed),
-    and ranks first by held-out BIC over the lag of the spool (second order before the map)
-    and the command's delay, which each leave over ten times its held-out gap."""
-    make_dataset(tmp_path / "data", P.with_effect("valve_lag", form="flow", corner_frequency=25.0,
-                                                  damping_ratio=0.6), seed=3)
-    prepared = prepare(read_dataset(tmp_path / "data"))
+def _ranked(root, truth, names):
+    """The candidates ``names`` fitted alone (each from its grid) on the small campaign of
+    test_diagnosis recorded on ``truth`` (sensor noise on), ranked by held-out BIC."""
+    make_dataset(root, truth, seed=3)
+    prepared = prepare(read_dataset(root))
     prepared.floor, prepared.floor_windows = calibrate(prepared, P)
     nominal = predict_all(P, prepared, None)
-    fits = [fit(prepared, P, [CANDIDATES[name]])
-            for name in ("valve_lag:flow", "valve_lag:second_order", "valve_delay")]
-    ranked = rank(fits, score(prepared, nominal, "holdout"),
-                  window_errors(prepared, nominal, "holdout"), prepared.dt)
+    fits = [fit(prepared, P, [CANDIDATES[name]]) for name in names]
+    return rank(fits, score(prepared, nominal, "holdout"),
+                window_errors(prepared, nominal, "holdout"), prepared.dt)
+
+
+def test_flow_lag_is_recovered_and_chosen_over_the_spools_lag(tmp_path):
+    """A model record with a 25 Hz, zeta 0.6 lag on the chamber flows: the candidate
+    valve_lag:flow recovers the frequency within 4 % and the damping within 0.06 (the
+    self-check's model truths give a median parameter error of 0.3 %; this leaves room for
+    another noise seed), and ranks first by held-out BIC over the lag of the spool (second order
+    before the map), the command's delay and the line's, which each leave over ten times its
+    held-out gap."""
+    ranked = _ranked(tmp_path / "data", P.with_effect(
+        "valve_lag", form="flow", corner_frequency=25.0, damping_ratio=0.6),
+        ("valve_lag:flow", "valve_lag:second_order", "valve_delay", "valve_delay:line"))
     best = ranked[0].fit
     assert best.name == "valve_lag:flow" and ranked[0].explains
     got = best.values["valve_lag:flow"]
     assert got["corner_frequency"] == pytest.approx(25.0, rel=0.04)
     assert got["damping_ratio"] == pytest.approx(0.6, abs=0.06)
     assert all(r.fit.holdout.gap > 10.0 * best.holdout.gap for r in ranked[1:])
+
+
+def test_line_matches_the_plants_line_written_apart():
+    """valve_delay form line (3 ms one way) against the self-check plant's transport_delay,
+    written apart (tested there against its delay differential equation): the change each
+    makes to its own nominal run agrees within 250 Pa (locked chambers, a command step and
+    its reversal) and 30 um (free piston, a 2 V square wave), against 8.7 kPa and 0.6 mm of
+    effect; the command's delay of the same tau differs from the plant's line by over 3 kPa
+    (the valve there sees the present pressure, the line's a round trip late)."""
+    locked = {"mechanics.locked": True}
+    cases = ((np.concatenate([np.full(150, 1.5), np.full(150, -1.0)]), locked, "p1", 250.0),
+             (2.0 * np.sign(np.sin(2 * np.pi * np.arange(3000) * 1e-3)), {}, "y", 3e-5))
+    for u, changes, signal, tolerance in cases:
+        model, plant = P.with_values(changes), PlantSpec().with_values(changes)
+
+        def change(truth, base, run):
+            return getattr(run(truth, u), signal) - getattr(run(base, u), signal)
+
+        expected = change(plant.with_effect("transport_delay", delay=3e-3), plant, plant_run)
+        line = change(model.with_effect("valve_delay", form="line", delay=3e-3), model, simulate)
+        assert np.abs(line - expected).max() < tolerance
+        assert np.abs(expected).max() > 10 * tolerance
+        if changes:  # locked
+            command = change(model.with_effect("valve_delay", delay=3e-3), model, simulate)
+            assert np.abs(command - expected).max() > 3e3
+
+
+def test_line_delay_is_recovered_and_chosen_over_the_commands(tmp_path):
+    """A model record with a 3 ms line between valve and chambers: valve_delay:line recovers
+    it within 0.15 ms (a twentieth) and ranks first by held-out BIC over the command's delay
+    and the flow lag (a line's lumped first mode), each leaving over three times its gap."""
+    ranked = _ranked(tmp_path / "data", P.with_effect("valve_delay", form="line", delay=3e-3),
+                     ("valve_delay:line", "valve_delay", "valve_lag:flow"))
+    best = ranked[0].fit
+    assert best.name == "valve_delay:line" and ranked[0].explains
+    assert best.values["valve_delay:line"]["delay"] == pytest.approx(3e-3, abs=1.5e-4)
+    assert all(r.fit.holdout.gap > 3.0 * best.holdout.gap for r in ranked[1:])

@@ -150,7 +150,8 @@ def effect_of(name: str) -> str:
 
 
 CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
-    Candidate("valve_delay", (Knob("delay", 0.0, 0.008, 0.0),), {"delay": 0.003}),
+    Candidate("valve_delay", (Knob("delay", 0.0, 0.008, 0.0),), {"delay": 0.003},
+              {"form": "command"}),
     Candidate("valve_delay:line", (Knob("delay", 0.0, 0.008, 0.0),), {"delay": 0.003},
               {"form": "line"}),
     Candidate("valve_lag:first_order", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),),
