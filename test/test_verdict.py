@@ -225,6 +225,33 @@ def test_a_second_effect_pinned_at_the_edge_of_its_range_is_not_named(rng):
         assert v.winner.fit.name == "supply_pressure+leakage:orifice"
 
 
+def test_a_single_effect_pinned_at_the_edge_of_its_range_is_not_named(rng):
+    """The plant's flow lag before the candidates had its form: a command delay pinned at its
+    8 ms bound removing 71 % of the gap, the spool's second-order lag 42 %. The pinned delay
+    measures nothing, so it is not named; the lag explains less than half, so nothing is: the
+    cause lies outside the candidates, and the reason says which one stood in. Inside its range
+    the delay is named; pinned but ranked above an effect that explains most of the gap, that
+    effect is named with the stand-in in the reason."""
+    nom = windows(FLOOR + 4e-4, rng)
+
+    def delay(value, gap):
+        return fit("valve_delay", gap, windows(FLOOR + (gap / 100) ** 2, rng),
+                   valve_delay={"delay": value})
+
+    bound = CANDIDATES["valve_delay"].knobs[0].high
+    lag = fit("valve_lag:second_order", 1.16, windows(FLOOR + 1.16e-2 ** 2, rng))
+    v = decide(rank([delay(bound, 0.58), lag], score(2.0), nom, 1e-3), score(2.0), nom, None)
+    assert v.winner is None and v.unexplained
+    assert "valve_delay.delay at the edge of its search range" in v.reason
+    v = decide(rank([delay(0.5 * bound, 0.58), lag], score(2.0), nom, 1e-3), score(2.0), nom,
+               None)
+    assert v.winner.fit.name == "valve_delay"
+    mostly = fit("valve_lag:second_order", 0.8, windows(FLOOR + 0.8e-2 ** 2, rng))
+    v = decide(rank([delay(bound, 0.58), mostly], score(2.0), nom, 1e-3), score(2.0), nom, None)
+    assert v.winner.fit.name == "valve_lag:second_order"
+    assert "valve_delay.delay at the edge of its search range" in v.reason
+
+
 def test_a_pair_member_back_where_it_vanishes_is_found():
     """diagnose.vanished: a joint refit that put the supply back at 10 bar left the leak doing
     the work (the pair is the leak alone, refitted without the supply); a member that still

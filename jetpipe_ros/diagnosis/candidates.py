@@ -7,8 +7,12 @@ each contains the value at which the effect vanishes (zero delay, hysteresis, le
 the nominal supply and mass; a corner, wall heat conductance, bristle stiffness or supply line
 conductance high enough, or a pre-sliding displacement short enough, to be invisible), so a fit
 to data without the effect can land on "no effect". The forms the physics admits are candidates
-of their own, judged on held-out data like the effects: the valve lag of first order (a corner)
-or second order (a natural frequency and a damping ratio); the thermal effect as a polytropic
+of their own, judged on held-out data like the effects: the delay of the command, or of a line
+between valve and chambers (the flow arrives late, and the valve sees the chambers' pressures
+late); the valve lag of first order (a corner)
+or second order (a natural frequency and a damping ratio) on the valve's output, or of second
+order on each chamber's mass flow after the flow map (a port or a line; overdamped, zeta > 1,
+it is a first-order lag up to the frequencies it passes); the thermal effect as a polytropic
 index or as gas temperatures exchanging heat with the walls; leaks as laminar conductances,
 compressible (choked) orifices, or a flow that grows as the pressure difference to a fitted
 power, each across the piston and to atmosphere; the supply constant, or a line (volume and
@@ -146,12 +150,18 @@ def effect_of(name: str) -> str:
 
 
 CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
-    Candidate("valve_delay", (Knob("delay", 0.0, 0.008, 0.0),), {"delay": 0.003}),
+    Candidate("valve_delay", (Knob("delay", 0.0, 0.008, 0.0),), {"delay": 0.003},
+              {"form": "command"}),
+    Candidate("valve_delay:line", (Knob("delay", 0.0, 0.008, 0.0),), {"delay": 0.003},
+              {"form": "line"}),
     Candidate("valve_lag:first_order", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),),
               {"corner_frequency": 30.0}, {"form": "first_order"}),
     Candidate("valve_lag:second_order", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),
                                          Knob("damping_ratio", 0.2, 2.0, 0.7)),
               {"corner_frequency": 30.0, "damping_ratio": 0.7}, {"form": "second_order"}),
+    Candidate("valve_lag:flow", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),
+                                 Knob("damping_ratio", 0.2, 2.0, 0.7)),
+              {"corner_frequency": 30.0, "damping_ratio": 0.7}, {"form": "flow"}),
     Candidate("valve_hysteresis", (Knob("half_width", 0.0, 0.6, 0.0),
                                    Knob("spread", 0.0, 1.0, 0.0, tries=(1.0,), extent=True)),
               {"half_width": 0.25, "spread": 0.0}, {"elements": 8}),

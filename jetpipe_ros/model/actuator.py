@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from jetpipe_ros.model import kernel
-from jetpipe_ros.model.flow import P_SUPPLY_NOMINAL
+from jetpipe_ros.model.flow import P_SUPPLY_NOMINAL, flow_lag_matrix
 from jetpipe_ros.model.friction import FRICTION_FORMS, MAXWELL_SLIP, STATIC, element_slips
 from jetpipe_ros.model.params import ModelParams
 from jetpipe_ros.model.valve import sample_valve
@@ -45,10 +45,16 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
 
     dt = p["integration.sample_time"]
     substeps = p["integration.substeps"]
+    line_delay = (effect("valve_delay", "delay", 0.0)
+                  if p["effects.valve_delay.form"] == "line" else 0.0)
     lag_hz = effect("valve_lag", "corner_frequency", 0.0)
-    second_order = lag_hz and p["effects.valve_lag.form"] == "second_order"
-    valve = sample_valve(p, dt, substeps, extra_lag_hz=lag_hz or None,
-                         extra_delay=effect("valve_delay", "delay", 0.0),
+    lag_form = p["effects.valve_lag.form"]
+    second_order = lag_hz and lag_form == "second_order"
+    flow_lag = (flow_lag_matrix(lag_hz, p["effects.valve_lag.damping_ratio"], dt / substeps)
+                if lag_hz and lag_form == "flow" else np.zeros((0, 3)))
+    valve = sample_valve(p, dt, substeps,
+                         extra_lag_hz=lag_hz if lag_hz and lag_form != "flow" else None,
+                         extra_delay=0.0 if line_delay else effect("valve_delay", "delay", 0.0),
                          extra_lag_damping=p["effects.valve_lag.damping_ratio"]
                          if second_order else None)
     planes = np.array([[p[f"friction.{phase}.{q}"] for q in
@@ -80,6 +86,7 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
         p_supply=effect("supply_pressure", "pressure", P_SUPPLY_NOMINAL),
         line_conductance=p["effects.supply_pressure.line_conductance"] if line else 0.0,
         line_volume=p["effects.supply_pressure.line_volume"],
+        flow_lag=flow_lag, line_delay=line_delay * substeps / dt,
         leak_cross=p["effects.leakage.cross_coefficient"] if laminar else 0.0,
         leak_atm=p["effects.leakage.atmosphere_coefficient"] if laminar else 0.0,
         orifice_cross=p["effects.leakage.cross_area"] if orifice else 0.0,
@@ -158,11 +165,12 @@ class Actuator:
     def reset(self) -> None:
         """Return to the initial state: at rest, valve at rest, pressures as configured."""
         c = self.constants
-        x = np.zeros(kernel.VALVE + c.valve_a.shape[0])
+        x = np.zeros(kernel.state_size(c))
         p = self.params
         x[kernel.Y] = min(max(p["mechanics.initial_position"], -c.y_max), c.y_max)
         x[kernel.P1] = x[kernel.PS1] = p["chamber.initial_pressure_1"]
         x[kernel.P2] = x[kernel.PS2] = p["chamber.initial_pressure_2"]
+        kernel.fill_line(c, x)
         x[kernel.T1] = x[kernel.T2] = p["chamber.temperature"]
         x[kernel.SUPPLY] = c.p_supply
         x[kernel.STUCK] = 1.0
@@ -177,7 +185,8 @@ class Actuator:
         temperatures, friction state, the supply line's pressure, sample count and the sensor
         noise sequence carry over. If
         the change alters the valve chain's order or delay (e.g. enabling ``valve_lag`` or
-        changing ``valve.delay``), the valve chain restarts at rest.
+        changing ``valve.delay``), the valve chain restarts at rest (and a changed line between
+        valve and chambers holds the present pressures and no flow).
 
         The regulated rig (the friction tests of the paper's Fig. 15) also acts on the state:
         with the regulators on after the change and one of :data:`REGULATOR_KEYS` changed, the
@@ -189,14 +198,15 @@ class Actuator:
         params = self.params.with_values(changes)
         constants = build_constants(params)
         state, ring = self.state, self.ring
-        size = kernel.VALVE + constants.valve_a.shape[0]
+        size = kernel.state_size(constants)
         if state.shape[0] != size or ring.shape[0] != constants.delay_samples + 2:
             kept = state[:kernel.VALVE].copy()
             state = np.zeros(size)
             state[:kernel.VALVE] = kept
             state[kernel.PLAY:kernel.VALVE] = 0.0
-            state[kernel.HEAD] = 0.0
+            state[kernel.HEAD] = state[kernel.LINE_HEAD] = 0.0
             ring = np.zeros(constants.delay_samples + 2)
+            kernel.fill_line(constants, state)
         if params["chamber.regulated"] and any(key in changes for key in REGULATOR_KEYS):
             state = state.copy()
             state[kernel.P1] = params["chamber.initial_pressure_1"]

@@ -12,7 +12,13 @@ of length h:
 3. the flow map, leakage (effect) and Eq. 11-12 advance the pressures explicitly; with the
    supply line (effect) the supply pressure the flow map sees is a state, the line volume fed
    through the line conductance from the set pressure and drained by the flow the valve draws
-   into the chambers, advanced exactly over the sub-step at that flow;
+   into the chambers, advanced exactly over the sub-step at that flow; with the valve lag's
+   ``flow`` form each chamber receives the map's flow through a second-order lag, advanced
+   exactly over the sub-step with the map's flow held (its mean over the sub-step enters); with
+   the valve delay's ``line`` form a line between valve and chambers: the map sees each
+   chamber's pressure the line's delay ago and its flow reaches the chamber that delay later
+   (a history of sub-steps at the end of the state, read between the sub-steps around the
+   delay, so the delay is continuous);
 4. the piston velocity advances with the viscous friction implicit (F_v/M reaches ~4000 1/s),
    and Eq. 15's stick condition is checked whenever the velocity reaches or crosses zero, so
    stick-slip cannot chatter; with the friction_dynamics effect a LuGre bristle state or
@@ -41,20 +47,25 @@ from numba import njit
 
 from jetpipe_ros.model.chamber import (chamber_volumes, pressure_rates,
                                       pressure_temperature_rates)
-from jetpipe_ros.model.flow import (GAMMA_AIR, P_ATM, chamber_inflow, orifice_flow,
-                                    power_leak)
+from jetpipe_ros.model.flow import (GAMMA_AIR, P_ATM, chamber_inflow, flow_lag_step,
+                                    orifice_flow, power_leak)
 from jetpipe_ros.model.friction import (LUGRE, MAX_ELEMENTS, MAXWELL_SLIP, lugre_step,
                                         maxwell_slip_force, maxwell_slip_step, scaled_parameters,
                                         sliding_levels, static_friction, stribeck_force)
 from jetpipe_ros.model.valve import U_EQ_MAX, U_EQ_MIN
 
-# State layout: scalars, then the hysteresis play operators, the Maxwell-slip elements, then the
-# valve chain.
-Y, V, P1, P2, STUCK, Z, PS1, PS2, STEP, HEAD, UCMD, UEQ, FRICTION, T1, T2, SUPPLY = range(16)
-PLAY = 16  #: first of the MAX_PLAY hysteresis play-operator outputs
+# State layout: scalars (with the flow lag's flows into chambers 1 and 2 [kg/s] and their rates
+# [kg/s^2], the line's write slot), then the hysteresis play operators, the Maxwell-slip
+# elements, the valve chain, and with the line its history: per sub-step a row of
+# LINE_COLUMNS (the pressures at the port [Pa], the flows leaving the valve [kg/s]).
+Y, V, P1, P2, STUCK, Z, PS1, PS2, STEP, HEAD, UCMD, UEQ, FRICTION, T1, T2, SUPPLY, \
+    FLOW1, RATE1, FLOW2, RATE2, LINE_HEAD = range(21)
+PLAY = 21  #: first of the MAX_PLAY hysteresis play-operator outputs
 MAX_PLAY = 8
 ELEMENT = PLAY + MAX_PLAY  #: first of the MAX_ELEMENTS Maxwell-slip normalised deflections
 VALVE = ELEMENT + MAX_ELEMENTS  #: first of the valve chain's states
+LINE_P1, LINE_P2, LINE_Q1, LINE_Q2 = range(4)  #: columns of a row of the line's history
+LINE_COLUMNS = 4
 
 # Columns of the ``drive`` array of :func:`advance` (NaN = simulate that part).
 DRIVE_Y, DRIVE_V, DRIVE_P1, DRIVE_P2 = range(4)
@@ -87,6 +98,9 @@ class Constants(NamedTuple):
     p_supply: float  #: supply pressure [Pa] (with the line: the set pressure feeding it)
     line_conductance: float  #: supply line conductance [kg/(s Pa)], 0 = constant supply
     line_volume: float  #: supply line volume [m^3]
+    flow_lag: np.ndarray  #: the flow lag over a sub-step (:func:`flow.flow_lag_matrix`, (3, 3));
+    #: (0, 3) = off
+    line_delay: float  #: one-way delay of the line between valve and chambers [sub-steps]; 0 = off
     leak_cross: float  #: conductance chamber 1 -> 2 [kg/(s Pa)]
     leak_atm: float  #: conductance of each chamber to atmosphere [kg/(s Pa)]
     orifice_cross: float  #: orifice leak area chamber 1 -> 2 [m^2]
@@ -119,6 +133,22 @@ class Constants(NamedTuple):
     sensor_drift: float  #: pressure sensor drift [Pa/s]
     sigma_p: float  #: pressure noise [Pa]
     sigma_y: float  #: position noise [m]
+
+
+def state_size(c: Constants) -> int:
+    """Length of the state array for constants ``c``: the scalars, plays, elements and valve
+    chain, and the line's history (:data:`LINE_COLUMNS` per row, enough rows to read
+    ``line_delay`` sub-steps back between two rows)."""
+    rows = int(math.floor(c.line_delay)) + 2 if c.line_delay > 0.0 else 0
+    return VALVE + c.valve_a.shape[0] + LINE_COLUMNS * rows
+
+
+def fill_line(c: Constants, x: np.ndarray) -> None:
+    """A line at rest in state ``x``: its history holds the present pressures and no flow."""
+    history = x[VALVE + c.valve_a.shape[0]:].reshape(-1, LINE_COLUMNS)
+    history[:, LINE_P1] = x[P1]
+    history[:, LINE_P2] = x[P2]
+    history[:, LINE_Q1:] = 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -226,18 +256,16 @@ def _valve_flows(coef: np.ndarray, u_eq: float, p1: float, p2: float, p_supply: 
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _chamber_rates(coef: np.ndarray, p_supply: float, gain_charge: float, gain_discharge: float,
+def _chamber_rates(q1: float, q2: float,
                    leak_cross: float, leak_atm: float, orifice_cross: float, orifice_atm: float,
                    power_cross: float, power_atm: float, exponent: float,
                    r_gas: float, t_wall: float, rt: float, area: float, v01: float, v02: float,
                    polytropic: float, heat_transfer: float, y: float, v: float, p1: float,
-                   p2: float, t1: float, t2: float, u_eq: float
-                   ) -> tuple[float, float, float, float, float]:
-    """dp1/dt, dp2/dt [Pa/s], dT1/dt, dT2/dt [K/s] (0 without the heat-transfer form) and the
-    flow the valve draws from the supply into the chambers [kg/s] at one state: the flow map,
-    the leaks, the volumes and the pressure (and gas temperature) rates, with the effects the
-    arguments switch on (see :class:`Constants`)."""
-    q1, q2, drawn = _valve_flows(coef, u_eq, p1, p2, p_supply, gain_charge, gain_discharge)
+                   p2: float, t1: float, t2: float) -> tuple[float, float, float, float]:
+    """dp1/dt, dp2/dt [Pa/s] and dT1/dt, dT2/dt [K/s] (0 without the heat-transfer form) at one
+    state, the valve's flows into the chambers ``q1``, ``q2`` [kg/s] given: the leaks, the
+    volumes and the pressure (and gas temperature) rates, with the effects the arguments switch
+    on (see :class:`Constants`)."""
     q_x = leak_cross * (p1 - p2)
     q1 += -q_x - leak_atm * (p1 - P_ATM)
     q2 += q_x - leak_atm * (p2 - P_ATM)
@@ -257,9 +285,19 @@ def _chamber_rates(coef: np.ndarray, p_supply: float, gain_charge: float, gain_d
                                               heat_transfer)
         dp2, dt2 = pressure_temperature_rates(q2, p2, t2, -dvol, vol2, r_gas, t_wall,
                                               GAMMA_AIR, heat_transfer)
-        return dp1, dp2, dt1, dt2, drawn
+        return dp1, dp2, dt1, dt2
     dp1, dp2 = pressure_rates(q1, q2, p1, p2, v, vol1, vol2, area, rt, polytropic)
-    return dp1, dp2, 0.0, 0.0, drawn
+    return dp1, dp2, 0.0, 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _lagged_flow(lag: np.ndarray, q: float, rate: float, q_v: float, p: float
+                 ) -> tuple[float, float, float]:
+    """The flow lag over a sub-step (:func:`flow.flow_lag_step`): the mean flow into a chamber
+    at ``p`` [Pa], none out of it at or below the atmosphere (the valve vents there), and the
+    lag's new flow and rate."""
+    mean, q, rate = flow_lag_step(lag, q, rate, q_v)
+    return (0.0 if mean < 0.0 and p <= P_ATM else mean), q, rate
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -282,6 +320,16 @@ def supply_decay(c: Constants, step: float) -> float:
     return math.exp(-step * c.rt * c.line_conductance / c.line_volume)
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _row_at(a: np.ndarray, at: float) -> float:
+    """``a`` at the fractional row ``at``, linear between rows, the first row's before it."""
+    if at <= 0.0:
+        return a[0]
+    k = int(math.floor(at))
+    w = at - k
+    return a[k] if w == 0.0 else (1.0 - w) * a[k] + w * a[k + 1]
+
+
 @njit(cache=True, error_model="numpy")
 def chamber_rates(c: Constants, y: np.ndarray, v: np.ndarray, p1: np.ndarray, p2: np.ndarray,
                   u_eq: np.ndarray) -> np.ndarray:
@@ -290,19 +338,46 @@ def chamber_rates(c: Constants, y: np.ndarray, v: np.ndarray, p1: np.ndarray, p2
     sensitivities to the equivalent voltage dq1/du_eq, dq2/du_eq [kg/(s V)]. For equation
     errors (the diagnosis): the same rates the kernel integrates. With the supply line its
     pressure starts at the set pressure and follows the drawn flow from row to row, the rows
-    ``c.dt`` apart."""
+    ``c.dt`` apart; so do the flow lag's flows (the map's flow of each row held over it); with
+    the line between valve and chambers the map reads the pressures of the rows the line's
+    delay back and its flows arrive that delay later (both interpolated between rows; before
+    the first row, the first row's)."""
     n = y.shape[0]
     out = np.empty((6, n))
     du = 1e-3
     line = c.line_conductance > 0.0
     decay = supply_decay(c, c.dt)
     p_s = c.p_supply
+    lag = c.flow_lag
+    f1, r1, f2, r2 = 0.0, 0.0, 0.0, 0.0
+    rows_back = c.line_delay / c.substeps
+    sent = np.zeros((2, n))  # flows leaving the valve, row by row (the line's)
     for k in range(n):
-        out[0, k], out[1, k], _, _, drawn = _chamber_rates(
-            c.flow_coef, p_s, c.gain_charge, c.gain_discharge, c.leak_cross, c.leak_atm,
+        if rows_back > 0.0:
+            q1, q2, drawn = _valve_flows(c.flow_coef, u_eq[k], _row_at(p1, k - rows_back),
+                                         _row_at(p2, k - rows_back), p_s, c.gain_charge,
+                                         c.gain_discharge)
+        else:
+            q1, q2, drawn = _valve_flows(c.flow_coef, u_eq[k], p1[k], p2[k], p_s,
+                                         c.gain_charge, c.gain_discharge)
+        if lag.shape[0]:
+            m1, m2 = 0.0, 0.0
+            for _ in range(c.substeps):
+                m, f1, r1 = _lagged_flow(lag, f1, r1, q1, p1[k])
+                m1 += m / c.substeps
+                m, f2, r2 = _lagged_flow(lag, f2, r2, q2, p2[k])
+                m2 += m / c.substeps
+            q1, q2 = m1, m2
+        if rows_back > 0.0:
+            sent[0, k], sent[1, k] = q1, q2
+            q1, q2 = _row_at(sent[0], k - rows_back), _row_at(sent[1], k - rows_back)
+            q1 = 0.0 if q1 < 0.0 and p1[k] <= P_ATM else q1
+            q2 = 0.0 if q2 < 0.0 and p2[k] <= P_ATM else q2
+        out[0, k], out[1, k], _, _ = _chamber_rates(
+            q1, q2, c.leak_cross, c.leak_atm,
             c.orifice_cross, c.orifice_atm, c.power_cross, c.power_atm, c.leak_exponent,
             c.r_gas, c.t_wall, c.rt, c.area, c.v01, c.v02, c.polytropic, c.heat_transfer,
-            y[k], v[k], p1[k], p2[k], c.t_wall, c.t_wall, u_eq[k])
+            y[k], v[k], p1[k], p2[k], c.t_wall, c.t_wall)
         for i, (sign, p) in enumerate(((1.0, p1[k]), (-1.0, p2[k]))):
             u = sign * u_eq[k]
             out[2 + i, k] = chamber_inflow(c.flow_coef, u, p, p_s, c.gain_charge,
@@ -335,6 +410,13 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
     sensor_w = 1.0 - math.exp(-h / c.sensor_tau) if c.sensor_tau > 0.0 else 0.0
     line = c.line_conductance > 0.0
     line_decay = supply_decay(c, h)
+    lag = c.flow_lag
+    lagged = lag.shape[0] > 0
+    line_on = c.line_delay > 0.0
+    first_row = VALVE + c.valve_a.shape[0]
+    rows = (x.shape[0] - first_row) // LINE_COLUMNS
+    back = int(math.floor(c.line_delay))
+    theta = c.line_delay - back  # weight of the older of the two rows read
     driven = drive.shape[0] > 0
     for k in range(u.shape[0]):
         move = not c.locked
@@ -357,29 +439,56 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
         stuck, z, friction = x[STUCK], x[Z], x[FRICTION]
         elements = x[ELEMENT:ELEMENT + c.slips.shape[0]]
         t1, t2, ps1, ps2 = x[T1], x[T2], x[PS1], x[PS2]
+        f1, r1, f2, r2 = x[FLOW1], x[RATE1], x[FLOW2], x[RATE2]
         p_s = x[SUPPLY] if line else c.p_supply
         f_l = f_load[k]
+        # Pressures held on measurements (not by regulators): the valve still draws from the
+        # line and feeds the flow lag.
+        flows = pressurise or ((line or lagged or line_on) and not c.regulated)
+        slot = int(x[LINE_HEAD])
+        row = old = new = first_row
         for s in range(k * ns, (k + 1) * ns):
-            if pressurise:
-                # Chambers (Eq. 11-13): flow map, leakage, volumes, pressure (and gas
-                # temperature) rates; explicit.
-                dp1, dp2, dt1, dt2, drawn = _chamber_rates(
-                    coef, p_s, c.gain_charge, c.gain_discharge, c.leak_cross, c.leak_atm,
-                    c.orifice_cross, c.orifice_atm, c.power_cross, c.power_atm,
-                    c.leak_exponent, c.r_gas, c.t_wall, c.rt, c.area, c.v01, c.v02,
-                    c.polytropic, c.heat_transfer, y, v, p1, p2, t1, t2, u_eq[s])
-                if c.heat_transfer > 0.0:
-                    t1 = max(t1 + h * dt1, 1.0)
-                    t2 = max(t2 + h * dt2, 1.0)
-                p1 = max(p1 + h * dp1, MIN_PRESSURE)
-                p2 = max(p2 + h * dp2, MIN_PRESSURE)
+            if flows:
+                if line_on:
+                    # The port's pressures of line_delay sub-steps ago.
+                    row = first_row + LINE_COLUMNS * slot
+                    x[row + LINE_P1], x[row + LINE_P2] = p1, p2
+                    new = first_row + LINE_COLUMNS * ((slot - back + rows) % rows)
+                    old = first_row + LINE_COLUMNS * ((slot - back - 1 + rows) % rows)
+                    q1, q2, drawn = _valve_flows(
+                        coef, u_eq[s], theta * x[old + LINE_P1] + (1.0 - theta) * x[new + LINE_P1],
+                        theta * x[old + LINE_P2] + (1.0 - theta) * x[new + LINE_P2], p_s,
+                        c.gain_charge, c.gain_discharge)
+                else:
+                    q1, q2, drawn = _valve_flows(coef, u_eq[s], p1, p2, p_s, c.gain_charge,
+                                                 c.gain_discharge)
+                if lagged:
+                    q1, f1, r1 = _lagged_flow(lag, f1, r1, q1, p1)
+                    q2, f2, r2 = _lagged_flow(lag, f2, r2, q2, p2)
+                if line_on:
+                    # What left the valve line_delay sub-steps ago; none out of a chamber at or
+                    # below the atmosphere (the valve vents there).
+                    x[row + LINE_Q1], x[row + LINE_Q2] = q1, q2
+                    q1 = theta * x[old + LINE_Q1] + (1.0 - theta) * x[new + LINE_Q1]
+                    q2 = theta * x[old + LINE_Q2] + (1.0 - theta) * x[new + LINE_Q2]
+                    q1 = 0.0 if q1 < 0.0 and p1 <= P_ATM else q1
+                    q2 = 0.0 if q2 < 0.0 and p2 <= P_ATM else q2
+                    slot = slot + 1 if slot + 1 < rows else 0
+                if pressurise:
+                    # Chambers (Eq. 11-13): leakage, volumes, pressure (and gas temperature)
+                    # rates; explicit.
+                    dp1, dp2, dt1, dt2 = _chamber_rates(
+                        q1, q2, c.leak_cross, c.leak_atm,
+                        c.orifice_cross, c.orifice_atm, c.power_cross, c.power_atm,
+                        c.leak_exponent, c.r_gas, c.t_wall, c.rt, c.area, c.v01, c.v02,
+                        c.polytropic, c.heat_transfer, y, v, p1, p2, t1, t2)
+                    if c.heat_transfer > 0.0:
+                        t1 = max(t1 + h * dt1, 1.0)
+                        t2 = max(t2 + h * dt2, 1.0)
+                    p1 = max(p1 + h * dp1, MIN_PRESSURE)
+                    p2 = max(p2 + h * dp2, MIN_PRESSURE)
                 if line:
                     p_s = supply_step(p_s, c.p_supply, c.line_conductance, drawn, line_decay)
-            elif line and not c.regulated:
-                # Pressures held on measurements: the valve still draws from the line.
-                _, _, drawn = _valve_flows(coef, u_eq[s], p1, p2, p_s, c.gain_charge,
-                                           c.gain_discharge)
-                p_s = supply_step(p_s, c.p_supply, c.line_conductance, drawn, line_decay)
             if move:
                 y, v, stuck, z, friction = _mechanics_substep(
                     planes, c.profile, c.area * (p1 - p2) - f_l, p1, p2, h, c.mass, c.y_max,
@@ -397,6 +506,8 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
         x[STUCK], x[Z], x[FRICTION] = stuck, z, friction
         x[T1], x[T2], x[PS1], x[PS2] = t1, t2, ps1, ps2
         x[SUPPLY] = p_s
+        x[FLOW1], x[RATE1], x[FLOW2], x[RATE2] = f1, r1, f2, r2
+        x[LINE_HEAD] = slot
         x[UCMD] = u[k]
         x[UEQ] = u_eq[(k + 1) * ns - 1]
         x[STEP] += 1.0

@@ -63,7 +63,8 @@ FRICTION_PLANES = {
 THERMAL_FORMS = ("polytropic", "heat_transfer")
 LEAKAGE_FORMS = ("laminar", "orifice", "power")
 SUPPLY_FORMS = ("constant", "line")
-LAG_FORMS = ("first_order", "second_order")
+LAG_FORMS = ("first_order", "second_order", "flow")
+DELAY_FORMS = ("command", "line")
 DYNAMIC_FRICTION_FORMS = tuple(FRICTION_FORMS)
 FRICTION_UNITS = {"breakaway": "N", "stribeck_velocity": "m/s", "viscous": "N s/m", "coulomb": "N"}
 
@@ -181,14 +182,22 @@ MAX_KNOTS = 200
 
 #: Parameters of each effect (besides ``effects.<name>.enabled``). Typical sizes: docs/effects.md.
 _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
-    "valve_delay": [_p("delay", 0.002, "Extra transport delay", "s", 0.0, 0.05)],
+    "valve_delay": [
+        _p("form", "command", "Where the delay acts: on the valve command (command), or in a "
+           "line between valve and chambers (line: the valve sees each chamber's pressure "
+           "delay ago, and its flow reaches the chamber delay later)", choices=DELAY_FORMS),
+        _p("delay", 0.002, "Extra transport delay (form line: one way along the line)", "s",
+           0.0, 0.05),
+    ],
     "valve_lag": [
         _p("form", "first_order", "Lag on the valve's output: first order (a corner), or "
-           "second order (a natural frequency and a damping ratio)", choices=LAG_FORMS),
+           "second order (a natural frequency and a damping ratio); or flow: a second-order "
+           "lag on each chamber's mass flow after the flow map (a port or line between valve "
+           "and chamber)", choices=LAG_FORMS),
         _p("corner_frequency", 30.0, "Corner frequency (first order) or natural frequency "
-           "(second order) of the lag", "Hz", 0.5, 1000.0),
-        _p("damping_ratio", 0.7, "Damping ratio of the lag (form second_order)", "", 0.05,
-           5.0),
+           "(second order, flow) of the lag", "Hz", 0.5, 1000.0),
+        _p("damping_ratio", 0.7, "Damping ratio of the lag (forms second_order, flow)", "",
+           0.05, 5.0),
     ],
     "valve_hysteresis": [
         _p("half_width", 0.25, "Hysteresis loop half-width (mean play threshold)", "V",
