@@ -35,11 +35,11 @@ def scheduler():
 
 def _build(log, truth, root, seed):
     """The small campaign of test_diagnosis; logs each case it records and the dataset index it
-    wrote (the workers are other processes: files tell what they did); case 1 fails while
-    ``log``.stop exists."""
+    wrote (the workers are other processes: files tell what they did); case 0 fails while
+    ``log``.stop exists (its truth is ``none``, the quickest to diagnose again on resuming)."""
     with open(log, "a") as f:
         f.write(root.name + "\n")
-    if root.name == "case01" and log.with_suffix(".stop").exists():
+    if root.name == "case00" and log.with_suffix(".stop").exists():
         raise RuntimeError("interrupted")
     make_dataset(root, truth, seed=seed % 1000)
     with open(log.with_suffix(".index"), "a") as f:
@@ -48,7 +48,7 @@ def _build(log, truth, root, seed):
 
 def test_selfcheck_cases_run_on_the_cluster_and_resume(tmp_path, monkeypatch, scheduler):
     """The self-check's machinery on a cluster: three cases (the model truths of seed 2: none,
-    a valve lag, a valve delay) spread over the workers, the lag's case interrupted, the run
+    a valve lag, a valve delay) spread over the workers, the first case interrupted, the run
     resumed, then all three scored (results, confusion, recovery, intervals, report). The truths
     are the candidates' own forms, so this checks the plumbing, not the detection: detection on
     truths of other forms is test_selfcheck's plant case; that the datasets carry no truth is
@@ -60,19 +60,19 @@ def test_selfcheck_cases_run_on_the_cluster_and_resume(tmp_path, monkeypatch, sc
     out = tmp_path / "out"
     run = functools.partial(selfcheck.run_selfcheck, 3, 2, build, out, deviate=False,
                             source="model", scheduler=scheduler)
-    with pytest.raises(selfcheck.SelfcheckError, match="1 of 3 cases failed.*case 1.*"
+    with pytest.raises(selfcheck.SelfcheckError, match="1 of 3 cases failed.*case 0.*"
                                                        "interrupted.*run the same command"):
         run(progress=lambda line: None)
     assert sorted(log.read_text().split()) == ["case00", "case01", "case02"]
-    assert [p.parent.name for p in sorted(out.glob("cases/*/result.json"))] == ["case00", "case02"]
+    assert [p.parent.name for p in sorted(out.glob("cases/*/result.json"))] == ["case01", "case02"]
     assert not (out / "selfcheck.json").exists()
 
     log.with_suffix(".stop").unlink()
     lines = []
     summary = run(progress=lines.append)
-    assert log.read_text().split()[3:] == ["case01"]  # only the second is computed
+    assert log.read_text().split()[3:] == ["case00"]  # only the first is computed
     assert len(lines) == 2 and lines[0].startswith("resuming: 2 of 3 cases already done")
-    assert lines[-1].startswith("[3/3]") and "left" in lines[-1] and "valve_lag" in lines[-1]
+    assert lines[-1].startswith("[3/3]") and "left" in lines[-1] and "none" in lines[-1]
     assert summary["resumed"] == 2 and summary["ran_on"] == f"the Dask scheduler at {scheduler}"
     assert [r["truth"] for r in summary["results"]] == ["none", "valve_lag", "valve_delay"]
     assert [r["verdict"] for r in summary["results"]] == ["none", "valve_lag", "valve_delay"]
