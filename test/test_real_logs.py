@@ -6,6 +6,7 @@ The loggers' artefacts are written here, apart from the code that corrects them.
 import json
 import shutil
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -93,6 +94,28 @@ def test_an_offset_of_whole_rows_is_measured_and_read(nominal_record, tmp_path, 
     assert aligned.shift_rows == rows
     assert aligned.logger_offset(DT) == pytest.approx(-rows * DT)
     assert aligned.reading == ("aligned" if rows == 0 else "logging convention")
+
+
+@pytest.mark.parametrize("offset, lag", [(-3e-3, 0), (-3e-3, None), (3e-3, 0)])
+def test_an_offset_at_the_edge_of_its_search_is_not_acted_on(monkeypatch, offset, lag):
+    """The model's offset fitted at the edge of its +-3 ms search (as on records of the position
+    alone whose log was aligned, where it trades off with the knobs the position does not pin)
+    is not a measurement: however small its standard error, nothing is corrected and no extra
+    delay is read into it; the words say why. Just inside the edge it is acted on."""
+    from jetpipe_ros.diagnosis import alignment
+
+    prepared = SimpleNamespace(dt=DT)
+    monkeypatch.setattr(alignment, "controller_reaction", lambda p: (lag, 0.0))
+    for fitted, edge in ((offset, True), (offset * 0.9, False)):
+        monkeypatch.setattr(alignment, "model_offset", lambda p, n: (fitted, 1e-4, "all"))
+        aligned = align(prepared, ModelParams())
+        if edge:
+            assert aligned.shift_rows == 0 and aligned.reading == "aligned"
+            assert "edge" in aligned.words and "not a measurement" in aligned.words
+        elif offset < 0:
+            assert aligned.shift_rows == 3 and aligned.reading == "logging convention"
+        else:
+            assert aligned.shift_rows == 0 and aligned.reading == "extra delay"
 
 
 def test_an_open_loop_record_late_by_a_row_is_ambiguous_with_a_valve_delay(nominal_record,
