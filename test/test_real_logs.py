@@ -160,12 +160,20 @@ def test_a_lagging_valve_logged_a_row_early_with_lost_rows_and_jitter(tmp_path):
     assert "Time base (logging convention)" in report
 
 
-def test_hardware_outside_the_model_class_names_no_effect(tmp_path):
+def test_hardware_outside_the_model_class_names_no_effect(tmp_path, capsys):
     """A spring-return cylinder on two on/off valves with one pressure sensor (another rig
-    entirely): no candidate can be the answer, and the verdict says the model does not fit."""
+    entirely): no candidate can be the answer, and the verdict says the model does not fit
+    (``jetpipe diagnose`` prints it once and names no effect)."""
+    from jetpipe_ros.cli import main
+
     root = write_foreign_dataset(tmp_path / "data")
-    params = load_params(write_foreign_params(tmp_path / "params.yaml"))
-    result = diagnose(root, tmp_path / "out", params, workers=1, quiet=True)
+    params = write_foreign_params(tmp_path / "params.yaml")
+    assert main(["diagnose", str(root), "--out", str(tmp_path / "out"), "--params", str(params),
+                 "--quiet", "--jobs", "1"]) == 0
+    printed = capsys.readouterr().out
+    assert printed.count("does not describe this hardware") == 1
+    assert "verdict: no effect named (model_fits: false)" in printed
+    result = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
     v = result["verdict"]
     assert v["model_fits"] is False
     assert v["effects"] == [] and v["params"] == {}
@@ -173,8 +181,6 @@ def test_hardware_outside_the_model_class_names_no_effect(tmp_path):
     assert result["gap"]["augmented"] >= result["gap"]["persistence"]
     assert result["data"]["sensors"] == ["y", "p1"]
     assert "sensor_dynamics" not in result["data"]["cannot_judge"]
-    saved = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
-    assert saved["verdict"]["model_fits"] is False
 
 
 def test_a_valve_delay_seen_by_the_position_alone(tmp_path):

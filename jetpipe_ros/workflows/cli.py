@@ -24,9 +24,11 @@ def _diagnose(args: argparse.Namespace) -> int:
     v, g = result["verdict"], result["gap"]
     print(f"time base: {result['data']['time_base']['explanation']}")
     if not v["model_fits"]:
-        print(f"the model does not describe this hardware: {v['reason']}")
-    print(f"verdict: {v['effect']} (subsystem {v['subsystem']}, confidence "
-          f"{v['confidence']:.2f})")
+        print(v["reason"])  # it begins: the model does not describe this hardware
+        print("verdict: no effect named (model_fits: false)")
+    else:
+        print(f"verdict: {v['effect']} (subsystem {v['subsystem']}, confidence "
+              f"{v['confidence']:.2f})")
     print(f"held-out gap ({g['metric']}): nominal {g['nominal']:.2f} %, augmented "
           f"{g['augmented']:.2f} %, shrinkage {100 * g['shrinkage']:.0f} %")
     print(f"report: {args.out}/report.html  augmented model: {args.out}/augmented.yaml")
