@@ -17,7 +17,7 @@ from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.workflows import diagnose
 from jetpipe_ros.diagnosis.alignment import Z_OFFSET, align, controller_reaction
 from jetpipe_ros.diagnosis.data import prepare
-from jetpipe_ros.model import ModelParams, load_params
+from jetpipe_ros.model import ModelParams
 
 from foreign_hardware import write_foreign_dataset, write_foreign_params
 
