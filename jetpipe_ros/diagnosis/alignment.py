@@ -178,8 +178,8 @@ def at_edge(offset: float, dt: float) -> bool:
     """Whether an offset [s] lies at the edge of its search range (within 1 % of the range's
     width, as a knob at its bound, :meth:`KnobGroup.pinned`): the fit would have gone further,
     so it is not a measurement. Seen on records of the position alone, where the offset trades
-    off with knobs the position does not pin: fitted at -3 ms on 4 of 12 held-out records of
-    seed 7919 whose log was aligned, each then moved 3 rows by mistake."""
+    off with knobs the position does not pin: of 12 held-out records of seed 7919 whose log was
+    aligned, 4 were moved 2-3 rows by mistake, 2 of them on an offset fitted at -3 ms."""
     reach = search_reach(dt)
     return abs(offset) >= reach - 0.02 * reach
 
