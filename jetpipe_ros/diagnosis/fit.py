@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -269,6 +269,19 @@ def _brent(obj: _Objective, start: np.ndarray) -> None:
                              method="bounded", options={"xatol": 2e-3, "maxiter": 14})
 
 
+def jacobian(residuals: Callable[[np.ndarray], np.ndarray], z: np.ndarray,
+             step: float) -> np.ndarray:
+    """d ``residuals`` / d ``z`` at the unit-scaled knobs ``z``: central differences of
+    ``step``, one-sided where a knob is within ``step`` of the unit box's edge."""
+    columns = []
+    for i in range(z.size):
+        lo, hi = z.copy(), z.copy()
+        lo[i] = max(lo[i] - step, 0.0)
+        hi[i] = min(hi[i] + step, 1.0)
+        columns.append((residuals(hi) - residuals(lo)) / (hi[i] - lo[i]))
+    return np.column_stack(columns)
+
+
 def uncertainty(prepared: Prepared, nominal: ModelParams, fitted: Fit,
                 groups: Sequence[KnobGroup] | None = None,
                 step: float = 0.01) -> dict[str, dict[str, float | None]]:
@@ -287,12 +300,7 @@ def uncertainty(prepared: Prepared, nominal: ModelParams, fitted: Fit,
     groups = list(groups) if groups is not None else [group(g) for g in fitted.groups]
     obj = _Objective(prepared, nominal, groups, budget=10**9)
     r0 = obj.residuals(fitted.z)
-    jac = np.empty((r0.size, fitted.z.size))
-    for i in range(fitted.z.size):
-        lo, hi = fitted.z.copy(), fitted.z.copy()
-        lo[i] = max(lo[i] - step, 0.0)
-        hi[i] = min(hi[i] + step, 1.0)
-        jac[:, i] = (obj.residuals(hi) - obj.residuals(lo)) / (hi[i] - lo[i])
+    jac = jacobian(obj.residuals, fitted.z, step)
     info = jac.T @ jac
     cov = float(r0 @ r0) / effective_samples(fitted.train, prepared.dt) * np.linalg.pinv(info)
     out: dict[str, dict[str, float | None]] = {}

@@ -35,7 +35,7 @@ import numpy as np
 
 from jetpipe_ros.diagnosis.calibration import CALIBRATION, SPREAD
 from jetpipe_ros.diagnosis.data import Prepared
-from jetpipe_ros.diagnosis.fit import Fit
+from jetpipe_ros.diagnosis.fit import Fit, jacobian
 from jetpipe_ros.diagnosis.score import effective_samples, predict_all, residual_vector
 from jetpipe_ros.model import ModelParams
 
@@ -94,16 +94,10 @@ def words(report: dict) -> str | None:
 def _jacobian(prepared: Prepared, nominal: ModelParams, z: np.ndarray,
               role: str) -> np.ndarray:
     """d(residuals of the ``role`` samples) / d(ln factor) of each calibration knob at the
-    unit-scaled knobs ``z`` (central differences within the ranges)."""
+    unit-scaled knobs ``z`` (:func:`fit.jacobian`)."""
 
     def residuals(at: np.ndarray) -> np.ndarray:
         params = CALIBRATION.apply(nominal, CALIBRATION.values(at))
         return residual_vector(prepared, predict_all(params, prepared, role), role)
 
-    columns = []
-    for i in range(z.size):
-        lo, hi = z.copy(), z.copy()
-        lo[i] = max(lo[i] - STEP, 0.0)
-        hi[i] = min(hi[i] + STEP, 1.0)
-        columns.append((residuals(hi) - residuals(lo)) / (hi[i] - lo[i]))
-    return np.column_stack(columns) / CALIBRATION.log_slopes()[None, :]
+    return jacobian(residuals, z, STEP) / CALIBRATION.log_slopes()[None, :]

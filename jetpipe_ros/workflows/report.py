@@ -15,6 +15,7 @@ import numpy as np
 import yaml
 
 from jetpipe_ros.diagnosis.data import Prepared
+from jetpipe_ros.diagnosis.nuisance import words as nuisance_words
 from jetpipe_ros.diagnosis.separation import words as stand_in_words
 from jetpipe_ros.figures import png_img, pyplot
 
@@ -262,15 +263,9 @@ def summary(result: dict) -> str:
                                  for k in cal["at_bound"])
                      + ": the truth may lie outside the range searched, or the knob stands in "
                        "for something it does not model.")
-    free = cal.get("nuisance", {}).get("directions", [])
+    free = nuisance_words(cal["nuisance"]) if cal.get("nuisance") else None
     if free:
-        knobs = dict.fromkeys(k for d in free for k in d["knobs"])
-        lines.append(f"The training experiments leave {len(free)} direction"
-                     f"{'s' if len(free) > 1 else ''} of the knobs free ("
-                     + ", ".join(f"<code>{k}</code>" for k in knobs)
-                     + f") that the held-out predictions depend on (one standard deviation "
-                       f"moves them by up to {free[0]['heldout_over_noise']:.0f} x the sensors' "
-                       f"noise): fitted on all records, alike in every model compared.")
+        lines.append(html.escape(free[0].upper() + free[1:]) + ".")
     if cal["traded_with_effect"]:
         lines.append("With the effect in the model, recalibration moved "
                      + ", ".join(f"<code>{k}</code> by {100 * (m - 1):+.0f} %"
