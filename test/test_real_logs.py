@@ -104,7 +104,7 @@ def test_an_offset_at_the_edge_of_its_search_is_not_acted_on(monkeypatch, offset
     delay is read into it; the words say why. Just inside the edge it is acted on."""
     from jetpipe_ros.diagnosis import alignment
 
-    prepared = SimpleNamespace(dt=DT)
+    prepared = SimpleNamespace(dt=DT, sensors=("y", "p1", "p2"))
     monkeypatch.setattr(alignment, "controller_reaction", lambda p: (lag, 0.0))
     for fitted, edge in ((offset, True), (offset * 0.9, False)):
         monkeypatch.setattr(alignment, "model_offset", lambda p, n: (fitted, 1e-4, "all"))
@@ -116,6 +116,27 @@ def test_an_offset_at_the_edge_of_its_search_is_not_acted_on(monkeypatch, offset
             assert aligned.shift_rows == 3 and aligned.reading == "logging convention"
         else:
             assert aligned.shift_rows == 0 and aligned.reading == "extra delay"
+
+
+@pytest.mark.parametrize("lag", [0, 1])
+def test_with_the_position_alone_the_controller_is_believed_over_the_model(monkeypatch, lag):
+    """A model offset of -2.5 ms at 5 standard errors, as fitted on aligned records of the
+    position alone, moves the measurements 2 rows when a pressure is measured (it pins the
+    offset), but not when the position alone is: the closed-loop controller's reaction decides
+    (0 rows: aligned; 1 row late: moved 1 row), and the model's offset is only said."""
+    from jetpipe_ros.diagnosis import alignment
+
+    monkeypatch.setattr(alignment, "controller_reaction", lambda p: (lag, 20.0))
+    monkeypatch.setattr(alignment, "model_offset", lambda p, n: (-2.5e-3, 5e-4, "all"))
+    with_pressure = align(SimpleNamespace(dt=DT, sensors=("y", "p1")), ModelParams())
+    assert with_pressure.shift_rows == 2 and with_pressure.reading == "logging convention"
+    alone = align(SimpleNamespace(dt=DT, sensors=("y",)), ModelParams())
+    assert alone.shift_rows == lag and alone.offset_s == -2.5e-3
+    assert alone.reading == ("aligned" if lag == 0 else "logging convention")
+    assert "position alone" in alone.words and "-2.50 ms" in alone.words
+    # Without a closed loop there is nothing else to go by: the model's offset is acted on.
+    monkeypatch.setattr(alignment, "controller_reaction", lambda p: (None, 0.0))
+    assert align(SimpleNamespace(dt=DT, sensors=("y",)), ModelParams()).shift_rows == 2
 
 
 def test_an_open_loop_record_late_by_a_row_is_ambiguous_with_a_valve_delay(nominal_record,
