@@ -15,4 +15,4 @@ WANT=$(cat requirements.txt "$ROS_REQ" setup.py | sha256sum | cut -d' ' -f1)
 [ -x "$VENV/bin/python" ] && "$VENV/bin/python" -c "import jetpipe_ros, rclpy, numba" 2>/dev/null \
   && [ "$(cat "$VENV/requirements.sha" 2>/dev/null)" = "$WANT" ] \
   || VENV="$VENV" scripts/setup_venv.sh "$DISTRO"
-exec "$VENV/bin/python" -m pytest test -q "$@"
+exec "$VENV/bin/python" -m pytest test -q --durations=25 "$@"
