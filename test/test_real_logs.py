@@ -119,21 +119,24 @@ def test_an_offset_at_the_edge_of_its_search_is_not_acted_on(monkeypatch, offset
 
 
 @pytest.mark.parametrize("lag", [0, 1])
-def test_with_the_position_alone_the_controller_is_believed_over_the_model(monkeypatch, lag):
+def test_without_both_pressures_the_controller_is_believed_over_the_model(monkeypatch, lag):
     """A model offset of -2.5 ms at 5 standard errors, as fitted on aligned records of the
-    position alone, moves the measurements 2 rows when a pressure is measured (it pins the
-    offset), but not when the position alone is: the closed-loop controller's reaction decides
-    (0 rows: aligned; 1 row late: moved 1 row), and the model's offset is only said."""
+    position alone or of one pressure, moves the measurements 2 rows when both pressures are
+    measured (they pin the offset), but not with fewer sensors: the closed-loop controller's
+    reaction decides (0 rows: aligned; 1 row late: moved 1 row), the model's offset is only
+    said."""
     from jetpipe_ros.diagnosis import alignment
 
     monkeypatch.setattr(alignment, "controller_reaction", lambda p: (lag, 20.0))
     monkeypatch.setattr(alignment, "model_offset", lambda p, n: (-2.5e-3, 5e-4, "all"))
-    with_pressure = align(SimpleNamespace(dt=DT, sensors=("y", "p1")), ModelParams())
-    assert with_pressure.shift_rows == 2 and with_pressure.reading == "logging convention"
-    alone = align(SimpleNamespace(dt=DT, sensors=("y",)), ModelParams())
-    assert alone.shift_rows == lag and alone.offset_s == -2.5e-3
-    assert alone.reading == ("aligned" if lag == 0 else "logging convention")
-    assert "position alone" in alone.words and "-2.50 ms" in alone.words
+    both = align(SimpleNamespace(dt=DT, sensors=("y", "p1", "p2")), ModelParams())
+    assert both.shift_rows == 2 and both.reading == "logging convention"
+    for sensors, words in ((("y",), "the position alone"), (("y", "p1"), "the position and p1"),
+                           (("y", "p2"), "the position and p2")):
+        fewer = align(SimpleNamespace(dt=DT, sensors=sensors), ModelParams())
+        assert fewer.shift_rows == lag and fewer.offset_s == -2.5e-3
+        assert fewer.reading == ("aligned" if lag == 0 else "logging convention")
+        assert words in fewer.words and "-2.50 ms" in fewer.words
     # Without a closed loop there is nothing else to go by: the model's offset is acted on.
     monkeypatch.setattr(alignment, "controller_reaction", lambda p: (None, 0.0))
     assert align(SimpleNamespace(dt=DT, sensors=("y",)), ModelParams()).shift_rows == 2
