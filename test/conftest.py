@@ -17,6 +17,18 @@ from jetpipe_ros.nodes.domain import reserve_domain
 REPO = Path(__file__).resolve().parent.parent
 
 
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Mark ``ros`` every test that talks ROS (it takes a ROS domain): ``scripts/test.sh``
+    runs those one at a time, and the rest on every core."""
+    for item in items:
+        if "ros_domain" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.ros)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line("markers", "ros: talks ROS (starts nodes or an rclpy context)")
+
+
 @pytest.fixture(scope="session")
 def ros_domain() -> Iterator[int]:
     """Isolate this test run's ROS traffic: a domain id of its own, localhost discovery only.
