@@ -5,7 +5,8 @@ The plant simulates the actuator with the paper's nominal physics evaluated by i
 delay of Eq. 10, the friction planes and Eq. 15/18, Eq. 13), taking from the model only the
 parameters' names and values, and, switched on at will, real effects in other
 functional forms than the model's candidates, and effects on no list, each with its own
-equations (in the docstrings of ``valve``, ``chambers``, ``mechanics`` and ``sensors``). Its
+equations (in the docstrings of ``valve``, ``passages``, ``chambers``, ``mechanics`` and
+``sensors``). Its
 own compiled loop (``loop``) integrates in 8 sub-steps per sample. :class:`Plant` has the
 interface of the model's ``Actuator``, so the offline campaign runner records datasets on it
 (:func:`campaign_dataset`); :data:`REAL_EFFECTS` says what each effect is to the diagnosis and

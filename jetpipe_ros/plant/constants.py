@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import NamedTuple
 
@@ -9,30 +10,32 @@ import numpy as np
 
 from jetpipe_ros.plant.air import GAMMA_AIR, P_SUPPLY
 from jetpipe_ros.plant.linear import second_order_lag
+from jetpipe_ros.plant.passages import N_SEGMENTS, inner_steps
 from jetpipe_ros.plant.seal import knee_of, length_of
 from jetpipe_ros.plant.spec import PlantSpec
-from jetpipe_ros.plant.valve import VALVE_STEPS, chain_parameters
+from jetpipe_ros.plant.valve import MAP_P_MAX, MAP_P_MIN, VALVE_STEPS, chain_parameters, jet_flow
 
-# State layout: scalars, the flow lag, the sensors, the load, the plays, the measured seal's
-# reversal points, then the valve chain.
+# State layout: scalars, the ports, the sensors, the load, the plays, the measured seal's
+# reversal points, the valve chain, then the lines.
 (Y, V, M1, M2, E1, E2, P1, P2, STUCK, Z, SUPPLY, DRAWN, STEP, HEAD, UCMD, UEQ,
  FRICTION, SEAL_D, SEAL_N, REGULATOR) = range(20)  # SEAL_D: the seal's branch direction,
 # SEAL_N: its reversal points in use; REGULATOR: the supply regulator's outlet pressure [Pa]
-FLOW = 20  #: flow lag: chamber 1's flow [kg/s], its rate, chamber 2's, its rate
-SENSOR1 = 24  #: chamber 1 transducer: reading [Pa], its rate [Pa/s]
-SENSOR2 = 26  #: chamber 2 transducer
-POSITION = 28  #: position transducer: reading [m], its rate [m/s]
-LOAD = 30  #: the compliant load: position [m], velocity [m/s]
-LINE_HEAD = 32  #: the line history's slot of the current sub-step
-PLAY = 33  #: the N_PLAY play operators' outputs [V]
+PORT = 20  #: the port volumes' pressures [Pa]: chamber 1's, chamber 2's (passages docstring)
+SENSOR1 = 22  #: chamber 1 transducer: reading [Pa], its rate [Pa/s]
+SENSOR2 = 24  #: chamber 2 transducer
+POSITION = 26  #: position transducer: reading [m], its rate [m/s]
+LOAD = 28  #: the compliant load: position [m], velocity [m/s]
+PLAY = 30  #: the N_PLAY play operators' outputs [V]
 N_PLAY = 3
 SEAL = PLAY + N_PLAY  #: the measured seal's N_SEAL reversal points: x_r [m], F_r [N] each
 N_SEAL = 8
 VALVE = SEAL + 2 * N_SEAL  #: the valve chain's states: coil current, rotor rate, angle, lead-lag
 N_VALVE = 4
-#: Columns of the line history (one row per sub-step): the chambers' pressures at the sub-step's
-#: start [Pa] and the valve's flows over it [kg/s].
-LINE_P1, LINE_P2, LINE_Q1, LINE_Q2 = range(4)
+#: The lines to chambers 1 and 2, LINE_SIZE states each: the nodes' pressures [Pa], then the
+#: segments' mass flows [kg/s] (passages docstring).
+LINE = VALVE + N_VALVE
+LINE_SIZE = 2 * N_SEGMENTS
+SIZE = LINE + 2 * LINE_SIZE  #: length of the state vector
 
 
 #: The pressure transducers' span: 0-10 bar gauge [Pa].
@@ -50,12 +53,16 @@ class PlantConstants(NamedTuple):
     delay: float  #: the valve's delay in samples
     delay_whole: int  #: whole samples it reaches back (the command ring holds 2 more)
     valve_steps: int  #: Runge-Kutta steps of the chain per sub-step
-    flow_lag: bool  #: the second-order lag on each chamber's flow on
-    flow_lag_a: np.ndarray  #: its discretisation over a sub-step
-    flow_lag_b: np.ndarray
-    line: bool  #: the line delay on
-    line_delay: float  #: its one-way delay in sub-steps
-    line_size: int  #: rows of the line history
+    port: bool  #: a port volume behind a filter before each chamber (flow_lag) on
+    port_volume: float  #: V_p [m^3]
+    port_conductance: float  #: the filter's K [m^3/(s Pa)]
+    line: bool  #: a pneumatic line to each chamber (transport_delay) on
+    line_bore: float  #: d [m]
+    line_area: float  #: A [m^2]
+    segment_length: float  #: l_s [m]
+    line_wave: float  #: gamma r T / V_s [Pa/kg]
+    line_inertance: float  #: l_s / A [1/m]
+    passage_steps: int  #: inner steps of the ports and lines per sub-step
     play_thresholds: np.ndarray  #: [V]; empty = no hysteresis
     play_weights: np.ndarray  #: normalised to sum 1
     valve_gain: float  #: u_eq per u_h
@@ -125,6 +132,23 @@ class PlantConstants(NamedTuple):
     sigma_y: float  #: position noise [m]
 
 
+@functools.cache
+def valve_slope_max() -> float:
+    """The steepest fall of Eq. 8's flow with pressure, max -dq/dp [kg/(s Pa)] over its range
+    (u_eq -2.8-3 V, 1-10 bar; central differences on a grid)."""
+    slopes = [(jet_flow(u, p - 1e-3) - jet_flow(u, p + 1e-3)) / 2e-3 * 1e-5
+              for u in np.linspace(-2.8, 3.0, 30)
+              for p in np.linspace(MAP_P_MIN + 1e-3, MAP_P_MAX - 1e-3, 30)]
+    return max(slopes)
+
+
+def _port_rate(port: dict, rt: float) -> float:
+    """The port's fastest rate (G + K_v) / C_p [1/s]: the filter's G at 10 bar and the valve's
+    steepest slope, C_p = V_p / (r T) (passages docstring); sets the inner step."""
+    return (port["filter_conductance"] * MAP_P_MAX * 1e5 / rt + valve_slope_max()) * rt \
+        / port["port_volume"]
+
+
 def build_constants(spec: PlantSpec) -> PlantConstants:
     """Compile ``spec`` for the loop."""
     p = spec.params
@@ -133,10 +157,16 @@ def build_constants(spec: PlantSpec) -> PlantConstants:
     h = dt / spec.substeps
     chain, lead = chain_parameters(p)
     delay = p["valve.delay"] / dt
-    lag = e.get("flow_lag")
-    lag_a, lag_b = second_order_lag(lag["natural_frequency"], lag["damping_ratio"], h) if lag \
-        else (np.zeros((2, 2)), np.zeros(2))
-    line_delay = e.get("transport_delay", {}).get("delay", 0.0) / h
+    r_gas = p["chamber.gas_constant"]
+    rt = r_gas * p["chamber.temperature"]
+    port = e.get("flow_lag")
+    line = e.get("transport_delay")
+    line_length = line["length"] if line else 0.0
+    bore = line["bore"] if line else 1.0
+    line_area = math.pi * bore * bore / 4.0
+    segment = line_length / N_SEGMENTS
+    wave_speed = math.sqrt(GAMMA_AIR * rt)
+    steps = inner_steps(h, line_length, wave_speed, _port_rate(port, rt) if port else 0.0)
     load = e.get("extra_mass")
     if load:
         load_k = load["mass"] * (2.0 * math.pi * load["frequency"]) ** 2
@@ -174,14 +204,17 @@ def build_constants(spec: PlantSpec) -> PlantConstants:
     sensor_a, sensor_b = second_order_lag(sensor["natural_frequency"], sensor["damping_ratio"],
                                           h) if sensor else (np.zeros((2, 2)), np.zeros(2))
     noise = p["sensors.noise"]
-    r_gas = p["chamber.gas_constant"]
+    # The line's far half-segment lies in the chamber (passages docstring).
+    far = 0.5 * line_area * segment
     return PlantConstants(
         dt=dt, substeps=spec.substeps, u_limit=p["valve.command_limit"],
         chain=chain, lead=lead, delay=delay, delay_whole=int(math.ceil(delay - 1e-9)),
         valve_steps=VALVE_STEPS,
-        flow_lag=lag is not None, flow_lag_a=lag_a, flow_lag_b=lag_b,
-        line=line_delay > 0.0, line_delay=line_delay,
-        line_size=int(math.ceil(line_delay - 1e-9)) + 2,
+        port=port is not None, port_volume=port["port_volume"] if port else 1.0,
+        port_conductance=port["filter_conductance"] if port else 0.0,
+        line=line is not None, line_bore=bore, line_area=line_area, segment_length=segment,
+        line_wave=GAMMA_AIR * rt / (line_area * segment) if line else 0.0,
+        line_inertance=segment / line_area, passage_steps=steps,
         play_thresholds=thresholds, play_weights=weights,
         valve_gain=p["valve.gain"], null_offset=e.get("null_offset", {}).get("offset", 0.0),
         gain_charge=p["flow.gain_charge"], gain_discharge=p["flow.gain_discharge"],
@@ -201,8 +234,8 @@ def build_constants(spec: PlantSpec) -> PlantConstants:
         t_wall=p["chamber.temperature"],
         t_supply=p["chamber.temperature"] + (heat["supply_temperature_offset"] if heat else 0.0),
         r_gas=r_gas, cv=r_gas / (GAMMA_AIR - 1.0),
-        area=p["chamber.piston_area"], v01=p["chamber.dead_volume_1"],
-        v02=p["chamber.dead_volume_2"], mass=p["mechanics.mass"],
+        area=p["chamber.piston_area"], v01=p["chamber.dead_volume_1"] + far,
+        v02=p["chamber.dead_volume_2"] + far, mass=p["mechanics.mass"],
         load=load is not None, load_mass=load["mass"] if load else 0.0, load_k=load_k,
         load_c=load_c,
         y_max=0.5 * p["mechanics.stroke"], locked=p["mechanics.locked"],

@@ -3,7 +3,10 @@ named by (docs/effects.md) or ``unlisted``, and a sampler of realistic sizes.
 
 Sizes are the typical sizes of docs/effects.md read through each form (e.g. a transducer whose
 equivalent lag 2 zeta / w_n falls in 1-13 ms and whose nonlinearity is 0.25-1 % of its 10 bar
-span, a line 0.3-1.7 m long (1-5 ms one way at 343 m/s), a load of 1-4 kg on a coupling at
+span, a line 0.3-1.7 m long and 4-6 mm in bore (0.9-4.9 ms one way at 346 m/s, quarter-wave
+51-288 Hz), a port volume of 30-60 cm^3 behind a filter with a time constant of 2.5-10 ms at
+rest (the range of the second-order flow lag of earlier versions), a load of 1-4 kg on a
+coupling at
 30-120 Hz, a leak of a few % of the valve's rated flow, a
 supply that sags 0.4-1.4 bar at 3 g/s through its regulator and hose), and
 for the effects on no list, sizes that matter on a real bench (a null offset of 0.05-0.2 V, a
@@ -19,6 +22,7 @@ from typing import NamedTuple
 import numpy as np
 
 from jetpipe_ros.plant.chambers import gap_flow
+from jetpipe_ros.plant.valve import jet_flow
 
 
 class RealEffect(NamedTuple):
@@ -64,6 +68,28 @@ def _seal_gap(rng: np.random.Generator) -> dict[str, float]:
     return {"width": float(rng.uniform(0.5e-4, 1.5e-4)) / per_width, **gap}
 
 
+#: The port's time constant is drawn at rest at Eq. 8's null at 0 V (4.1648 bar) [Pa], the
+#: gas at 25 degC (r T [J/kg]).
+_PORT_P, _PORT_RT = 4.1648e5, 287.0 * 298.15
+
+
+def port_conductance(volume: float, tau: float) -> float:
+    """The filter conductance K [m^3/(s Pa)] that gives a port of ``volume`` [m^3] the time
+    constant ``tau`` [s] at rest at 4.1648 bar: tau = V_p / (K p + r T K_v) (passages
+    docstring), K_v = -dq/dp of Eq. 8 there at 0 V."""
+    slope = (jet_flow(0.0, _PORT_P * 1e-5 - 1e-4) - jet_flow(0.0, _PORT_P * 1e-5 + 1e-4)) \
+        / 2e-4 * 1e-5
+    return (volume / tau - _PORT_RT * slope) / _PORT_P
+
+
+def _port(rng: np.random.Generator) -> dict[str, float]:
+    """A port of 30-60 cm^3 (log) behind a filter, time constant 2.5-10 ms (log) at rest: at
+    3 g/s the filter drops 0.1-1.1 bar."""
+    volume = _log_uniform(rng, 3e-5, 6e-5)
+    return {"port_volume": volume,
+            "filter_conductance": port_conductance(volume, _log_uniform(rng, 2.5e-3, 1e-2))}
+
+
 def _bristles(rng: np.random.Generator) -> dict[str, float]:
     """Stiffness 1e4-1e6 N/m, damping 0.1-0.7 of critical, 2 sqrt(sigma_0 M), on the nominal
     1 kg."""
@@ -107,10 +133,8 @@ REAL_EFFECTS: dict[str, RealEffect] = {
         "nonlinearity": _signed(r, 2.5e3, 1e4),
         "offset_1": _signed(r, 1e3, 1e4), "offset_2": _signed(r, 1e3, 1e4)}),
     "transport_delay": RealEffect("valve", "valve_delay", lambda r: {
-        "delay": float(r.uniform(1e-3, 5e-3))}),
-    "flow_lag": RealEffect("valve", "valve_lag", lambda r: {
-        "natural_frequency": _log_uniform(r, 15.0, 60.0),
-        "damping_ratio": float(r.uniform(0.5, 1.0))}),
+        "length": float(r.uniform(0.3, 1.7)), "bore": float(r.uniform(4e-3, 6e-3))}),
+    "flow_lag": RealEffect("valve", "valve_lag", _port),
     "supply_droop": RealEffect("valve", "supply_pressure", lambda r: {
         "set_pressure": float(r.uniform(6.5e5, 9e5)), "droop": float(r.uniform(0.5e7, 1.5e7)),
         "droop_quadratic": float(r.uniform(2e9, 7e9)),

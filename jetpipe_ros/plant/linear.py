@@ -1,4 +1,4 @@
-"""Second-order linear blocks of the plant (the flow lag, the transducers):
+"""Second-order linear blocks of the plant (the pressure and position transducers):
 exact zero-order-hold discretisation and the per-sub-step update."""
 
 from __future__ import annotations

@@ -6,8 +6,9 @@ Per sub-step of length h = dt / substeps (8 by default, the model integrates in 
    command entered the command ring), then the plays and the null offset give u_eq
    (:mod:`valve`);
 2. the regulator and the hose advance (the supply_droop effect); the valve flows (Eq. 8 by
-   similarity, pressure-dependent gain; through the flow lag and the line when they are on,
-   from the sub-step's start) and the ISO 6358 and seal-gap leaks move gas mass (and
+   similarity, pressure-dependent gain; through the port volumes and the lines when they are
+   on, advanced over the sub-step against the chambers' pressures at its start:
+   :mod:`passages`) and the ISO 6358 and seal-gap leaks move gas mass (and
    enthalpy) at fixed volume (:mod:`chambers`), by Heun's rule (second order: the flows at the
    start and at the Euler prediction, averaged; u_eq the valve's output averaged over the
    sub-step);
@@ -33,13 +34,14 @@ from numba import njit
 from jetpipe_ros.plant.air import GAMMA_AIR, P_ATM
 from jetpipe_ros.plant.chambers import (exchange_heat, gap_leak_mass, isentropic_energy,
                                         leak_mass, volumes)
-from jetpipe_ros.plant.constants import (DRAWN, E1, E2, FLOW, FRICTION, HEAD, LINE_HEAD, LINE_P1,
-                                         LINE_P2, LINE_Q1, LINE_Q2, LOAD, M1, M2, N_PLAY, N_SEAL,
-                                         N_VALVE, P1, P2, PLAY, POSITION, REGULATOR, SEAL, SEAL_D,
-                                         SEAL_N, SENSOR1, SENSOR2, STEP, STUCK, SUPPLY, UCMD, UEQ,
-                                         VALVE, V, Y, Z, PlantConstants)
+from jetpipe_ros.plant.constants import (DRAWN, E1, E2, FRICTION, HEAD, LINE, LINE_SIZE, LOAD,
+                                         M1, M2, N_PLAY, N_SEAL, N_VALVE, P1, P2, PLAY, PORT,
+                                         POSITION, REGULATOR, SEAL, SEAL_D, SEAL_N, SENSOR1,
+                                         SENSOR2, STEP, STUCK, SUPPLY, UCMD, UEQ, VALVE, V, Y, Z,
+                                         PlantConstants)
 from jetpipe_ros.plant.linear import second_order_step
 from jetpipe_ros.plant.mechanics import bristles, directional_levels, stick_slip
+from jetpipe_ros.plant.passages import filter_flow, line_step
 from jetpipe_ros.plant.seal import seal_force, seal_substep
 from jetpipe_ros.plant.sensors import measure
 from jetpipe_ros.plant.valve import (U_EQ_HIGH, U_EQ_LOW, chain_output, chain_substep,
@@ -62,63 +64,51 @@ def _valve(c: PlantConstants, x: np.ndarray, xv: np.ndarray, ring: np.ndarray, h
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _lagged(c: PlantConstants, x: np.ndarray, i: int, q: float, p: float) -> float:
-    """The flow lag's output [kg/s] averaged over the sub-step, its state at ``x[i]`` advanced
-    with the valve's flow ``q`` [kg/s] held; no outflow from a chamber at ``p`` <= p_atm."""
-    start = x[i]
-    second_order_step(c.flow_lag_a, c.flow_lag_b, x, i, q)
-    out = 0.5 * (start + x[i])
-    return 0.0 if out < 0.0 and p <= P_ATM else out
+def _passage(c: PlantConstants, x: np.ndarray, u_eq: float, chamber: int, p_chamber: float,
+             h: float) -> tuple[float, float]:
+    """Advance the port and the line before one chamber (``chamber`` 0 or 1, at ``p_chamber``
+    [Pa]) over a sub-step ``h`` [s] in ``c.passage_steps`` inner steps (passages docstring);
+    return the mean flows [kg/s] the chamber receives and the valve delivers."""
+    n = c.passage_steps
+    dt = h / n
+    rt = c.r_gas * c.t_wall
+    sign = 1.0 if chamber == 0 else -1.0
+    base = LINE + chamber * LINE_SIZE
+    port = PORT + chamber
+    received = 0.0
+    valve = 0.0
+    for _ in range(n):
+        p_in = x[port] if c.port else (x[base] if c.line else p_chamber)
+        q_v = valve_inflow(sign * u_eq, p_in, x[SUPPLY], c.gain_charge, c.gain_discharge,
+                           c.gain_slope, c.shape, c.shape_phase)
+        q = q_v
+        if c.port:
+            # Heun: the port's flows at the step's start and at the Euler prediction.
+            down = x[base] if c.line else p_chamber
+            q_f = filter_flow(c.port_conductance, p_in, down, rt)
+            guess = p_in + dt * rt / c.port_volume * (q_v - q_f)
+            q_v2 = valve_inflow(sign * u_eq, guess, x[SUPPLY], c.gain_charge, c.gain_discharge,
+                                c.gain_slope, c.shape, c.shape_phase)
+            q_f2 = filter_flow(c.port_conductance, guess, down, rt)
+            q_v = 0.5 * (q_v + q_v2)
+            q = 0.5 * (q_f + q_f2)
+            x[port] += dt * rt / c.port_volume * (q_v - q)
+        if c.line:
+            q = line_step(x, base, q, p_chamber, c.line_wave, c.line_inertance, c.line_bore,
+                          c.line_area, c.segment_length, rt, dt)
+        received += q
+        valve += q_v
+    return received / n, valve / n
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _delayed(line: np.ndarray, slot: int, delay: float, a: int, b: int) -> tuple[float, float]:
-    """Columns ``a`` and ``b`` of the line's history as they were ``delay`` sub-steps before
-    row ``slot`` (the row being written), interpolated between the rows around that time."""
-    n = line.shape[0]
-    back = int(math.floor(delay))
-    theta = delay - back
-    old = (slot - back - 1 + n) % n
-    new = (slot - back + n) % n
-    return (theta * line[old, a] + (1.0 - theta) * line[new, a],
-            theta * line[old, b] + (1.0 - theta) * line[new, b])
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _valve_flows(c: PlantConstants, x: np.ndarray, line: np.ndarray, u_eq: float
+def _valve_flows(c: PlantConstants, x: np.ndarray, u_eq: float, h: float
                  ) -> tuple[float, float]:
-    """The valve's flows [kg/s] reaching chambers 1 and 2 over the sub-step when they do not
-    follow the chambers' present pressures (flow lag, line delay: valve docstring); records
-    the line's history and what the valve draws."""
-    p1 = x[P1]
-    p2 = x[P2]
-    n = line.shape[0]
-    slot = int(x[LINE_HEAD])
-    if c.line:
-        line[slot, LINE_P1] = p1
-        line[slot, LINE_P2] = p2
-        # The port's pressure of line_delay sub-steps ago.
-        p1, p2 = _delayed(line, slot, c.line_delay, LINE_P1, LINE_P2)
-    q1 = valve_inflow(u_eq, p1, x[SUPPLY], c.gain_charge, c.gain_discharge, c.gain_slope,
-                      c.shape, c.shape_phase)
-    q2 = valve_inflow(-u_eq, p2, x[SUPPLY], c.gain_charge, c.gain_discharge, c.gain_slope,
-                      c.shape, c.shape_phase)
-    x[DRAWN] = max(q1, 0.0) + max(q2, 0.0)
-    if c.flow_lag:
-        q1 = _lagged(c, x, FLOW, q1, x[P1])
-        q2 = _lagged(c, x, FLOW + 2, q2, x[P2])
-    if c.line:
-        line[slot, LINE_Q1] = q1
-        line[slot, LINE_Q2] = q2
-        # What left the valve line_delay sub-steps ago, each row's flow held over its sub-step.
-        q1, q2 = _delayed(line, slot, c.line_delay, LINE_Q1, LINE_Q2)
-        x[LINE_HEAD] = (slot + 1) % n
-        # A chamber at or below the atmosphere feeds no outflow (the gas in transit is
-        # exhausted anyway): without this the line kept emptying a chamber to vacuum.
-        if q1 < 0.0 and x[P1] <= P_ATM:
-            q1 = 0.0
-        if q2 < 0.0 and x[P2] <= P_ATM:
-            q2 = 0.0
+    """The flows [kg/s] reaching chambers 1 and 2 over the sub-step through the ports and the
+    lines when they are on (passages docstring); records what the valve draws."""
+    q1, v1 = _passage(c, x, u_eq, 0, x[P1], h)
+    q2, v2 = _passage(c, x, u_eq, 1, x[P2], h)
+    x[DRAWN] = max(v1, 0.0) + max(v2, 0.0)
     return q1, q2
 
 
@@ -155,11 +145,11 @@ def _vent(c: PlantConstants, x: np.ndarray, m: int, e: int, p: float, t: float, 
 def _flows(c: PlantConstants, x: np.ndarray, u_eq: float, vol1: float, vol2: float,
            h: float, q1: float, q2: float) -> None:
     """Move gas through the valve and the leaks over a sub-step at fixed volume; the valve's
-    flows are ``q1``, ``q2`` [kg/s] with a flow lag or a line, else the map's at the present
+    flows are ``q1``, ``q2`` [kg/s] through ports or lines, else the map's at the present
     pressures."""
     p1 = x[P1]
     p2 = x[P2]
-    if not (c.flow_lag or c.line):
+    if not (c.port or c.line):
         ps = x[SUPPLY]
         q1 = valve_inflow(u_eq, p1, ps, c.gain_charge, c.gain_discharge, c.gain_slope, c.shape,
                           c.shape_phase)
@@ -294,12 +284,12 @@ def _mechanics(c: PlantConstants, x: np.ndarray, f_load: float, h: float,
 
 
 @njit(cache=True, error_model="numpy")
-def advance(c: PlantConstants, x: np.ndarray, ring: np.ndarray, line: np.ndarray,
-            u: np.ndarray, f_load: np.ndarray, noise: np.ndarray, out: np.ndarray) -> None:
+def advance(c: PlantConstants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
+            f_load: np.ndarray, noise: np.ndarray, out: np.ndarray) -> None:
     """Advance ``len(u)`` samples from state ``x`` (in place): ``u`` [V] and ``f_load`` [N]
     held over each sample, ``noise`` (n, 3) standard normals, ``out[k]`` the outputs at the end
-    of sample k; ``ring`` the commands of the last samples, ``line`` the line delay's history
-    (both in place). Commands must be finite."""
+    of sample k; ``ring`` the commands of the last samples (in place). Commands must be
+    finite."""
     h = c.dt / c.substeps
     xv = x[VALVE:VALVE + N_VALVE].copy()
     points = np.empty(2 * N_SEAL)
@@ -322,8 +312,8 @@ def advance(c: PlantConstants, x: np.ndarray, ring: np.ndarray, line: np.ndarray
                 _supply(c, x, regulator_decay, hose_decay)
             if not c.regulated:
                 q1 = q2 = 0.0
-                if c.flow_lag or c.line:
-                    q1, q2 = _valve_flows(c, x, line, u_eq)
+                if c.port or c.line:
+                    q1, q2 = _valve_flows(c, x, u_eq, h)
                 # Heun: the flows at the start and at the Euler prediction, averaged.
                 m1, m2, e1, e2 = x[M1], x[M2], x[E1], x[E2]
                 _flows(c, x, u_eq, vol1, vol2, h, q1, q2)

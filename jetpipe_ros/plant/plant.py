@@ -21,6 +21,7 @@ from jetpipe_ros.plant.air import GAMMA_AIR
 from jetpipe_ros.plant.chambers import volumes
 from jetpipe_ros.plant.constants import PlantConstants, build_constants
 from jetpipe_ros.plant.loop import advance
+from jetpipe_ros.plant.passages import N_SEGMENTS
 from jetpipe_ros.plant.sensors import measure
 from jetpipe_ros.plant.spec import PlantSpec
 
@@ -51,7 +52,7 @@ class Plant:
         """Return to the initial state: at rest, valve at rest, pressures as configured."""
         c = self.constants
         p = self.params
-        x = np.zeros(s.VALVE + s.N_VALVE)
+        x = np.zeros(s.SIZE)
         x[s.Y] = min(max(p["mechanics.initial_position"], -c.y_max), c.y_max)
         x[s.STUCK] = 1.0
         # The seal relaxed: one reversal point, here, without friction.
@@ -65,17 +66,10 @@ class Plant:
         x[s.POSITION] = x[s.Y]
         x[s.LOAD] = x[s.Y]
         self.ring = np.zeros(c.delay_whole + 2)
-        self.line = self._line()
-
-    def _line(self) -> np.ndarray:
-        """The line delay's history at rest: the present pressures, no flow."""
-        line = np.zeros((self.constants.line_size, 4))
-        line[:, s.LINE_P1] = self.state[s.P1]
-        line[:, s.LINE_P2] = self.state[s.P2]
-        return line
 
     def _set_pressures(self, p1: float, p2: float, t1: float, t2: float) -> None:
-        """Fill the chambers to ``p1``, ``p2`` [Pa] at temperatures ``t1``, ``t2`` [K]."""
+        """Fill the chambers to ``p1``, ``p2`` [Pa] at temperatures ``t1``, ``t2`` [K], their
+        ports and lines to the same pressures, at rest."""
         c = self.constants
         x = self.state
         vols = volumes(x[s.Y], c.area, c.v01, c.v02)
@@ -84,6 +78,11 @@ class Plant:
             x[pi] = p
             x[m] = p * vol / (c.r_gas * t)
             x[e] = p * vol / (GAMMA_AIR - 1.0)
+        for i, p in enumerate((p1, p2)):
+            x[s.PORT + i] = p
+            line = s.LINE + i * s.LINE_SIZE
+            x[line:line + N_SEGMENTS] = p
+            x[line + N_SEGMENTS:line + s.LINE_SIZE] = 0.0
 
     @property
     def temperatures(self) -> tuple[float, float]:
@@ -120,17 +119,14 @@ class Plant:
         """
         spec = self.spec.with_values(changes)
         constants = build_constants(spec)
-        state, ring, line = self.state, self.ring, self.line
+        state, ring = self.state, self.ring
         if constants.delay != self.constants.delay:
             state = state.copy()
             state[s.VALVE:] = 0.0
             state[s.HEAD] = 0.0
             ring = np.zeros(constants.delay_whole + 2)
         temperatures = self.temperatures
-        renew = line.shape[0] != constants.line_size
         self.spec, self.constants, self.state, self.ring = spec, constants, state, ring
-        if renew:
-            self.line = self._line()
         p = spec.params
         if p["chamber.regulated"] and any(key in changes for key in REGULATOR_KEYS):
             self.state = state = state.copy()
@@ -142,7 +138,6 @@ class Plant:
             state[s.LOAD], state[s.LOAD + 1] = state[s.Y], 0.0
             self._set_pressures(p["chamber.initial_pressure_1"], p["chamber.initial_pressure_2"],
                                 *temperatures)
-            self.line = self._line()
 
     def _noise(self, n: int) -> np.ndarray:
         if self.constants.sigma_p == 0.0 and self.constants.sigma_y == 0.0:
@@ -162,7 +157,7 @@ class Plant:
         """
         self._one_u[0] = u
         self._one_f[0] = f_load
-        advance(self.constants, self.state, self.ring, self.line, self._one_u, self._one_f,
+        advance(self.constants, self.state, self.ring, self._one_u, self._one_f,
                 self._noise(1), self._one_out)
         return self._one_out[0]
 
@@ -173,7 +168,7 @@ class Plant:
             raise ValueError("valve command contains NaN or infinite values")
         fl = np.array(np.broadcast_to(f_load, u.shape), dtype=float)
         out = np.empty((u.shape[0], N_OUT))
-        advance(self.constants, self.state, self.ring, self.line, u, fl, self._noise(len(u)), out)
+        advance(self.constants, self.state, self.ring, u, fl, self._noise(len(u)), out)
         return out
 
 

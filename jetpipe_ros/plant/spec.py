@@ -3,8 +3,8 @@
 :class:`PlantSpec` holds a :class:`~jetpipe_ros.model.ModelParams` (the nominal values with the
 bench's deviations, the rig switches and the sensor noise; no model effect on) and the real
 effects switched on, each with its parameters (:data:`EFFECT_PARAMS`, unit and range each; the
-equations are in the docstrings of :mod:`valve`, :mod:`chambers`, :mod:`mechanics` and
-:mod:`sensors`).
+equations are in the docstrings of :mod:`valve`, :mod:`passages`, :mod:`chambers`,
+:mod:`mechanics` and :mod:`sensors`).
 """
 
 from __future__ import annotations
@@ -78,14 +78,15 @@ EFFECT_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
         _p("offset_2", -2e3, "Chamber 2 transducer offset o_2", "Pa", -1e5, 1e5),
     ),
     "transport_delay": (
-        _p("delay", 2.7e-3, "One-way wave time tau_l of the lines between the valve and the "
-           "chambers (beyond valve.delay): the flow arrives tau_l late, the port sees the "
-           "pressure tau_l late", "s", 0.0, 0.05),
+        _p("length", 1.0, "Length L of the pneumatic line from the valve's port to each "
+           "chamber (waves take L / c, 346 m/s)", "m", 0.01, 20.0),
+        _p("bore", 5e-3, "Bore d of that line", "m", 1e-3, 0.05),
     ),
     "flow_lag": (
-        _p("natural_frequency", 40.0, "Natural frequency f_n of the lag on each chamber's flow",
-           "Hz", 0.5, 1e4),
-        _p("damping_ratio", 0.7, "Damping ratio zeta of that lag", "", 0.05, 5.0),
+        _p("port_volume", 4e-5, "Port volume V_p between the valve and each chamber's filter",
+           "m^3", 1e-7, 1e-3),
+        _p("filter_conductance", 1e-8, "Conductance K of the porous filter from each port to "
+           "its chamber: q = K (p_p^2 - p^2) / (2 r T)", "m^3/(s Pa)", 1e-12, 1e-5),
     ),
     "supply_droop": (
         _p("set_pressure", 8e5, "Regulator set pressure p_set (absolute)", "Pa", 2e5, 1e6),

@@ -5,7 +5,7 @@ Signal path per sub-step of length h::
 
     u [V] -> clip -> delay tau (continuous) -> torque motor and jet pipe (Eq. 4) -> lead-lag
           (Eq. 9) -> weighted plays -> u_eq = clip(g u_h + u_0, -2.8, 3.0) -> flow map (Eq. 8)
-          q(u_eq, p; p_s) with gain (1 + k ...) -> flow lag -> line delay -> chamber
+          q(u_eq, p; p_s) with gain (1 + k ...) -> port volume and filter -> line -> chamber
 
 - **Torque motor and jet pipe** (Eq. 4, Table 1, integrated in the physical states of its
   derivation): the coil current i [A], the rotor's rate w [rad/s] and angle theta [rad],
@@ -59,25 +59,9 @@ Signal path per sub-step of length h::
       dq(u, p) = A sin(pi u / 2.9 V) cos(2 pi (p - 1 bar) / 9 bar + phi)   [kg/s],
 
   A [kg/s] at most 5e-4, phi [rad]; its RMS over the map's range is about A / 2.
-- **Flow lag** (``flow_lag``): the mass flow reaching each chamber q_c [kg/s] trails the flow
-  map's q_v through the gas dynamics of the receiver and the ports, a second-order lag *after*
-  the map's nonlinearity, q_c'' = w_n^2 (q_v - q_c) - 2 zeta w_n q_c' (w_n = 2 pi f_n [rad/s],
-  zeta [-]), each chamber's on its own flow, q_v held over the sub-step and the lag
-  discretised exactly (:mod:`linear`). No outflow at or below atmospheric pressure. The model's
-  candidates lag the equivalent voltage before the map (first or second order), where one lag
-  acts on both chambers alike.
-- **Line delay** (``transport_delay``): a line between the valve and each chamber whose waves
-  take tau_l [s] (extra to the valve's own delay): the valve's port sees the chamber's pressure
-  of tau_l ago and the chamber receives the port's flow of tau_l ago,
-
-      q_v(t) = q(u_eq(t), p(t - tau_l); p_s),   q_c(t) = q_v(t - tau_l),
-
-  so the pressure feeds back through 2 tau_l while the command acts through tau_l. Kept as a
-  history of the sub-steps' pressures (read linearly interpolated) and flows (each held over
-  its sub-step, so every kg leaving the valve arrives: mass is conserved, except that a
-  chamber at or below atmospheric pressure feeds no outflow, the gas in transit exhausted
-  anyway). The model's candidate delays the command before the valve, the pressure acting at
-  once.
+- **What lies between the valve and each chamber** (``flow_lag``: a port volume behind a
+  filter; ``transport_delay``: a pneumatic line with distributed dynamics): in
+  :mod:`passages`, the map read at the port's pressure.
 """
 
 from __future__ import annotations
