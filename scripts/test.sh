@@ -16,15 +16,15 @@ WANT=$(cat requirements.txt "$ROS_REQ" setup.py | sha256sum | cut -d' ' -f1)
 [ -x "$VENV/bin/python" ] && "$VENV/bin/python" -c "import jetpipe_ros, rclpy, numba" 2>/dev/null \
   && [ "$(cat "$VENV/requirements.sha" 2>/dev/null)" = "$WANT" ] \
   || VENV="$VENV" scripts/setup_venv.sh "$DISTRO"
-# Two stages: the tests that talk ROS one at a time (their nodes keep 1 kHz pace and time-outs
-# on an idle core), then the others on every core (pytest-xdist; they are pure computation).
-# Arguments go to both; a stage that selects nothing (pytest exit 5) is not a failure.
+# Two stages: the tests that are pure computation on every core (pytest-xdist), then the tests
+# that talk ROS one at a time (their nodes keep their 1 kHz pace and time-outs on a quiet
+# machine). Arguments go to both; a stage that selects nothing (pytest exit 5) is not a failure.
 status=0
-"$VENV/bin/python" -m pytest test -q --durations=15 -m ros "$@" || status=$?
-[ "$status" -eq 5 ] && status=0
-rest=0
 "$VENV/bin/python" -m pytest test -q --durations=15 -m "not ros" -n "${TEST_JOBS:-auto}" \
-  "$@" || rest=$?
-[ "$rest" -eq 5 ] && rest=0
+  "$@" || status=$?
+[ "$status" -eq 5 ] && status=0
+ros=0
+"$VENV/bin/python" -m pytest test -q --durations=15 -m ros "$@" || ros=$?
+[ "$ros" -eq 5 ] && ros=0
 [ "$status" -ne 0 ] && exit "$status"
-exit "$rest"
+exit "$ros"

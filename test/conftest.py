@@ -139,8 +139,18 @@ class Launcher:
             proc.stop()
 
 
+@pytest.fixture(scope="session")
+def compiled_kernel() -> None:
+    """The model's kernel compiled into numba's cache before any node starts: on a fresh clone
+    the first node would otherwise compile it within its start-up wait (54 s measured on a
+    loaded machine, against 30 s allowed)."""
+    from jetpipe_ros.model import compile_kernel
+
+    compile_kernel()
+
+
 @pytest.fixture
-def launch(ros_domain: int) -> Iterator[Launcher]:
+def launch(ros_domain: int, compiled_kernel: None) -> Iterator[Launcher]:
     """Start processes for one test; all are stopped at its end."""
     launcher = Launcher()
     try:
@@ -150,7 +160,7 @@ def launch(ros_domain: int) -> Iterator[Launcher]:
 
 
 @pytest.fixture(scope="module")
-def module_launch(ros_domain: int) -> Iterator[Launcher]:
+def module_launch(ros_domain: int, compiled_kernel: None) -> Iterator[Launcher]:
     """Start processes shared by a test module; all are stopped at its end."""
     launcher = Launcher()
     try:
