@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Run the test suite in the venv of a ROS 2 distro (created first if missing); arguments go to
 # pytest. ROS_DISTRO_WHEELS=jazzy runs it on Jazzy (.venv-jazzy) instead of Kilted (.venv);
-# TEST_JOBS=n sets the processes of the second stage (default: one per core).
+# TEST_JOBS=n sets the processes of the first stage (default: one per core).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 DISTRO=${ROS_DISTRO_WHEELS:-kilted}

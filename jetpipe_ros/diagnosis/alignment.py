@@ -243,18 +243,14 @@ def align(prepared: Prepared, nominal: ModelParams) -> Alignment:
         est += (f", at the edge of the +-{search_reach(dt) * 1e3:.1f} ms searched: not a "
                 f"measurement")
     sooner = significant and rows < 0  # answers sooner than the valve allows: the logger
-    missing = [p for p in ("p1", "p2") if p not in prepared.sensors]
-    if lag is not None and missing:
-        return _controller_believed(offset, se, lag, z, est, used,
-                                    "the position alone" if len(missing) == 2
-                                    else f"the position and {'p2' if missing == ['p1'] else 'p1'}")
+    pressures = [p for p in ("p1", "p2") if p in prepared.sensors]
+    if lag is not None and len(pressures) < 2:
+        through = f"the position and {pressures[0]}" if pressures else "the position alone"
+        return _controller_believed(offset, se, lag, z, est, used, through)
     if lag:  # the controller reacts off the logged row: the logger, by the contract's loop
         shift = max(lag, -rows) if sooner else lag
         reading = "logging convention"
-        words = (f"the controller in the closed-loop records reacts to the position {abs(lag)} "
-                 f"row(s) {'after' if lag > 0 else 'before'} the row it is logged on, so the "
-                 f"logger writes its measurements {abs(lag)} row(s) "
-                 f"{'early' if lag > 0 else 'late'} (the model's delay says {est})")
+        words = f"{_controller_reading(lag)} (the model's delay says {est})"
         if shift != lag:
             words += (f"; the measurements answer sooner still than the valve allows, so "
                       f"{shift} row(s)")
@@ -310,9 +306,13 @@ def _controller_believed(offset: float, se: float | None, lag: int, z: float, es
         words = (f"the closed-loop records' controller reacts to the position on the row it "
                  f"is logged on, so the measurements sit where the contract puts them; {why}")
         return Alignment(offset, se, lag, z, 0, "aligned", words, used)
-    words = (f"the controller in the closed-loop records reacts to the position {abs(lag)} "
-             f"row(s) {'after' if lag > 0 else 'before'} the row it is logged on, so the logger "
-             f"writes its measurements {abs(lag)} row(s) {'early' if lag > 0 else 'late'}; "
-             f"{why}; corrected by moving them {abs(lag)} row(s) "
+    words = (f"{_controller_reading(lag)}; {why}; corrected by moving them {abs(lag)} row(s) "
              f"{'later' if lag > 0 else 'earlier'}")
     return Alignment(offset, se, lag, z, lag, "logging convention", words, used)
+
+
+def _controller_reading(lag: int) -> str:
+    """What a controller reacting ``lag`` (non-zero) rows off its logged row says of the log."""
+    return (f"the controller in the closed-loop records reacts to the position {abs(lag)} "
+            f"row(s) {'after' if lag > 0 else 'before'} the row it is logged on, so the logger "
+            f"writes its measurements {abs(lag)} row(s) {'early' if lag > 0 else 'late'}")
