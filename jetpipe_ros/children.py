@@ -4,11 +4,32 @@ processes."""
 
 from __future__ import annotations
 
+import ctypes
 import os
+import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+#: prctl(2) option: the signal the kernel sends this process when its parent dies.
+_PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent() -> None:
+    """Ask the kernel to SIGTERM this process when its parent dies (Linux; elsewhere nothing).
+
+    Meant as ``preexec_fn`` of a child: a parent killed without the chance to stop its
+    children (SIGKILL, or a test runner ended by SIGTERM, which runs no finalizer) would
+    otherwise leave them running, still talking in their ROS domain. The kernel watches the
+    *thread* that started the child: start it from one that lives as long as the parent."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    except (OSError, AttributeError):  # no prctl: the parent's own stop() remains
+        return
 
 
 class Nodes:
@@ -30,7 +51,7 @@ class Nodes:
         proc = subprocess.Popen(
             [sys.executable, "-m", f"jetpipe_ros.nodes.{name}", "--ros-args",
              "-r", f"__ns:={self.namespace}", *ros_args],
-            stdout=log, stderr=subprocess.STDOUT, env=self.env)
+            stdout=log, stderr=subprocess.STDOUT, env=self.env, preexec_fn=die_with_parent)
         self.procs[name] = proc
         return proc
 

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from jetpipe_ros.children import die_with_parent
 from jetpipe_ros.nodes.domain import reserve_domain
 
 REPO = Path(__file__).resolve().parent.parent
@@ -61,7 +62,8 @@ class Process:
         self._changed = threading.Condition()
         self._eof = False
         self.popen = subprocess.Popen(argv, cwd=cwd, env=env, stdout=subprocess.PIPE,
-                                      stderr=subprocess.STDOUT, text=True, bufsize=1)
+                                      stderr=subprocess.STDOUT, text=True, bufsize=1,
+                                      preexec_fn=die_with_parent)
         threading.Thread(target=self._read, daemon=True).start()
 
     def _read(self) -> None:

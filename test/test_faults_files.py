@@ -8,9 +8,11 @@ from __future__ import annotations
 import json
 import math
 import os
+import signal
 import stat
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -456,3 +458,42 @@ def test_merge_keys_are_not_duplicates():
     assert fileio.parse_yaml("base: &b {a: 1, b: 2}\nx:\n  <<: *b\n  a: 3\n")["x"] == {
         "a": 3, "b": 2}
     assert yaml.safe_load("a: 1") == {"a": 1}  # PyYAML itself is left as it is
+
+
+def test_children_die_with_their_parent(tmp_path):
+    """A node started by a parent that is killed without stopping it (SIGKILL; a test runner
+    ended by SIGTERM runs no finalizer) ends too: it would otherwise keep publishing in its
+    ROS domain. Control: the same child started without the request outlives its parent
+    (given a second: the kernel signals at once, the child ends in milliseconds)."""
+
+    script = tmp_path / "parent.py"
+    script.write_text(
+        "import subprocess, sys, time\n"
+        "from jetpipe_ros.children import die_with_parent\n"
+        "kw = {'preexec_fn': die_with_parent} if sys.argv[1] == 'on' else {}\n"
+        "child = subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(60)'], **kw)\n"
+        "print(child.pid, flush=True)\n"
+        "time.sleep(60)\n")
+    alive = {}
+    for mode in ("on", "off"):
+        parent = subprocess.Popen([sys.executable, str(script), mode], stdout=subprocess.PIPE,
+                                  text=True, cwd=Path(__file__).resolve().parents[1])
+        child = int(parent.stdout.readline())
+        parent.send_signal(signal.SIGKILL)
+        parent.wait()
+        deadline = time.monotonic() + (10.0 if mode == "on" else 1.0)
+        while time.monotonic() < deadline and _running(child):
+            time.sleep(0.05)
+        alive[mode] = _running(child)
+        if alive[mode]:
+            os.kill(child, signal.SIGKILL)
+    assert alive == {"on": False, "off": True}
+
+
+def _running(pid: int) -> bool:
+    """True while ``pid`` runs (a zombie awaiting its reaper counts as ended)."""
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            return stat.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
