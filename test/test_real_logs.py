@@ -277,3 +277,36 @@ def test_knobs_the_position_alone_leaves_free_are_fitted_on_all_records(tmp_path
     assert alone.holdout.gap > NOISE_GAP
     assert cal.holdout.gap < NOISE_GAP
     assert any("fitted on all records" in n for n in position.notes)
+
+
+def test_a_delay_the_recalibration_imitates_on_the_position_alone_is_not_ruled_out(tmp_path):
+    """An actuator whose parameters alone are off, seen by the position alone: a typical 3 ms
+    valve delay changes the held-out position by more than the 0.5 % bar (its signature), yet
+    smaller dead volumes (stiffer air springs: the piston answers as early as before) and a
+    lower viscous friction take all but a fraction of the bar of it, so these records cannot
+    rule it out. With both pressures, the delay of each pressure's answer to the command is
+    what no knob changes: more than the bar is left, and it is not imitated."""
+    from jetpipe_ros.diagnosis.candidates import CANDIDATES
+    from jetpipe_ros.diagnosis.collinearity import imitated_effects, imitations
+    from jetpipe_ros.diagnosis.diagnose import recalibrate
+    from jetpipe_ros.diagnosis.noise_floor import calibrate
+    from jetpipe_ros.diagnosis.verdict import NOISE_GAP
+    from jetpipe_ros.workflows.selfcheck import deviations
+
+    changes, _ = deviations(np.random.default_rng(11), ModelParams())
+    root = record(tmp_path / "data", ModelParams().with_values(changes))
+    found = {}
+    for label in ("both", "position"):
+        if label == "position":
+            relog(root, drop=("p1", "p2"))
+        prepared = prepare(read_dataset(root))
+        prepared.floor, prepared.floor_windows = calibrate(prepared, ModelParams())
+        cal = recalibrate(prepared, ModelParams(), lambda message: None)
+        found[label] = imitations(prepared, ModelParams(), cal, [CANDIDATES["valve_delay"]])
+    both, alone = found["both"]["valve_delay"], found["position"]["valve_delay"]
+    assert both["signature_gap_pct"] > NOISE_GAP and alone["signature_gap_pct"] > NOISE_GAP
+    assert both["left_gap_pct"] > 2 * NOISE_GAP and not both["imitated"]
+    assert alone["left_gap_pct"] < NOISE_GAP and alone["imitated"]
+    assert alone["knobs"]["dead_volume_1"] < 0.95
+    assert imitated_effects(found["position"])["valve_delay"]["candidate"] == "valve_delay"
+    assert imitated_effects(found["both"]) == {}

@@ -5,7 +5,8 @@ once both are corrected (docs/diagnosis.md).
 Steps, each reported as progress: prepare and split the records and measure their time base;
 score the nominal model and locate its gap (signals, subsystems, regimes, frequency bands); check
 which candidates the experiments could show at all; recalibrate the nominal parameters
-(:mod:`calibration`) on the training data; fit every candidate alone and on top of the
+(:mod:`calibration`) on the training data and check which candidates the recalibration could
+imitate on these records (:mod:`collinearity`); fit every candidate alone and on top of the
 recalibrated model, refit the most promising jointly with the calibration, and score everything
 on the held-out data; try pairs when one effect leaves a significant gap; cross-check, with the
 roles of the data exchanged, what the short holdout cannot confirm alone; decide which of
@@ -29,6 +30,7 @@ from jetpipe_ros.diagnosis import calibration
 from jetpipe_ros.diagnosis.alignment import Alignment, align
 from jetpipe_ros.diagnosis.calibration import CALIBRATION
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate, effect_of
+from jetpipe_ros.diagnosis.collinearity import imitated_effects, imitations
 from jetpipe_ros.diagnosis.data import Prepared, prepare, swapped
 from jetpipe_ros.diagnosis.fit import BUDGET, Fit, stacked, uncertainty, with_nuisance
 from jetpipe_ros.diagnosis.jobs import IN_PROCESS, Fitter, Job, Workers, run_job
@@ -314,6 +316,9 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
     progress(f"recalibrating the nominal parameters on the training data "
              f"({len(CALIBRATION.knobs)} knobs)")
     cal = recalibrate(prepared, nominal, progress)
+    progress("which candidates the recalibration could imitate on these records")
+    imitation = imitations(prepared, nominal, cal,
+                           [c for c in candidates if seen[c.name] >= NOISE_GAP])
     with Fitter(prepared, swapped(prepared), workers, progress) as fitter:
         (cal_row,) = rank([cal], nom_hold, nom_windows, dt)
         progress(f"recalibrated: held-out gap {nom_hold.gap:.2f} % -> {cal.holdout.gap:.2f} % "
@@ -396,6 +401,11 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
                      aug_hold, localization, seen, separating, preds, errors,
                      [s.row for s in swaps])
     result["data"].update(_data_json(prepared, aligned, unjudged))
+    result["visibility"]["imitated_by_recalibration"] = imitation
+    hidden = imitated_effects(imitation) if result["verdict"]["effect"] == "none" else {}
+    result["visibility"]["not_ruled_out"] = sorted(hidden)
+    if hidden:
+        result["verdict"]["reason"] += "; " + _not_ruled_out(hidden)
     result["gap"]["persistence"] = still.gap
     result["verdict"]["model_fits"] = fits
     if not fits:
@@ -406,6 +416,20 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
              f"(confidence {result['verdict']['confidence']:.2f}); "
              f"{result['verdict']['reason']}")
     return Diagnosis(result, augmented, prepared, preds, remainders)
+
+
+def _not_ruled_out(hidden: Mapping[str, dict]) -> str:
+    """Words for the effects the recalibration could imitate (:func:`imitated_effects`)."""
+    def largest(knobs: Mapping[str, float]) -> dict[str, float]:
+        return dict(sorted(knobs.items(), key=lambda kv: -abs(np.log(kv[1])))[:2])
+
+    each = "; ".join(
+        f"{row['candidate']} {row['signature_gap_pct']:.2f} % -> {row['left_gap_pct']:.2f} % "
+        f"({', '.join(calibration.describe(largest(row['knobs'])))}, ...)"
+        for e, row in sorted(hidden.items()))
+    return (f"these records cannot rule out {', '.join(sorted(hidden))}: at its typical size "
+            f"the recalibration imitates each to within the {NOISE_GAP} % that counts as beyond "
+            f"noise ({each})")
 
 
 def cannot_judge(prepared: Prepared) -> dict[str, str]:

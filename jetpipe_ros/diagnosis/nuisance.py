@@ -54,8 +54,8 @@ def directions(prepared: Prepared, nominal: ModelParams,
     reports of them (``calibration.nuisance``)."""
     knobs = [k.name for k in CALIBRATION.knobs]
     z0 = recalibrated.z
-    train = _jacobian(prepared, nominal, z0, "train")
-    held = _jacobian(prepared, nominal, z0, "holdout")
+    train = calibration_jacobian(prepared, nominal, z0, "train")
+    held = calibration_jacobian(prepared, nominal, z0, "holdout")
     noise = max(recalibrated.train.noise_total, 1e-300)
     information = effective_samples(recalibrated.train, prepared.dt) / noise * train.T @ train
     prior = np.diag([1.0 / SPREAD[k] ** 2 for k in knobs])
@@ -91,9 +91,9 @@ def words(report: dict) -> str | None:
             f"records, alike in every model compared")
 
 
-def _jacobian(prepared: Prepared, nominal: ModelParams, z: np.ndarray,
-              role: str) -> np.ndarray:
-    """d(residuals of the ``role`` samples) / d(ln factor) of each calibration knob at the
+def calibration_jacobian(prepared: Prepared, nominal: ModelParams, z: np.ndarray,
+                         role: str | None) -> np.ndarray:
+    """d(residuals of the ``role`` samples, all for None) / d(ln factor) of each calibration knob at the
     unit-scaled knobs ``z`` (:func:`fit.jacobian`)."""
 
     def residuals(at: np.ndarray) -> np.ndarray:

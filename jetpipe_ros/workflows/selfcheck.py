@@ -191,6 +191,9 @@ class Case:
     knobs: dict = field(default_factory=dict)  #: the calibration factors it reported
     recalibration_shrinkage: float = 0.0  #: held-out shrinkage of the recalibration alone
     shrinkage: float = 0.0
+    #: effects the diagnosis said these records cannot judge or, answering none, cannot rule
+    #: out (the recalibration imitates them): said, not graded; a miss stays a miss
+    not_judged: list = field(default_factory=list)
     gap_nominal: float = 0.0
     gap_augmented: float = 0.0
     seconds: float = 0.0
@@ -227,6 +230,11 @@ class Case:
         if self.parameters_only and self.deviated:
             return named and self.calibrated
         return named
+
+    @property
+    def warned(self) -> bool:
+        """The diagnosis said it could not judge, or not rule out, an effect of the truth."""
+        return any(e in self.not_judged for e in self.truth.split("+"))
 
     def bench(self) -> ModelParams | PlantSpec:
         """The nominal parameters moved by the deviations, without the effect."""
@@ -385,6 +393,8 @@ def run_case(case: Case, make_dataset: Callable[[ModelParams | PlantSpec, Path, 
         case.gap_nominal, case.gap_augmented = (result["gap"]["nominal"],
                                                 result["gap"]["augmented"])
         case.shrinkage = result["gap"]["shrinkage"]
+        case.not_judged = sorted({*result["data"]["cannot_judge"],
+                                  *result["visibility"]["not_ruled_out"]})
         case.seconds = time.perf_counter() - t0
         if cases_dir:
             write_text(out / RESULT, to_json(dataclasses.asdict(case), indent=1))
@@ -606,7 +616,9 @@ def summarise(cases: list[Case], seconds: float) -> dict:
                      "recalibration_shrinkage": c.recalibration_shrinkage,
                      "confidence": c.confidence, "correct": c.correct,
                      "gap_nominal": c.gap_nominal, "gap_augmented": c.gap_augmented,
-                     "shrinkage": c.shrinkage, "seconds": c.seconds} for c in cases],
+                     "shrinkage": c.shrinkage, "not_judged": c.not_judged,
+                     "warned": c.warned, "seconds": c.seconds} for c in cases],
+        "misses_warned": sum(1 for c in cases if not c.correct and c.warned),
     }
 
 
@@ -652,6 +664,11 @@ def render(summary: dict) -> str:
         lines.append(f"- calibration knobs off by >= 5 % named in the right direction: "
                      f"{100 * summary['knobs_named']:.0f} %; median knob error "
                      f"{summary['median_knob_error']:.3f}")
+    misses = sum(1 for r in summary["results"] if not r["correct"])
+    if misses:
+        lines.append(f"- misses where the diagnosis said the records cannot judge or rule out "
+                     f"the true effect: {summary.get('misses_warned', 0)} of {misses} (still "
+                     f"counted as misses)")
     if summary.get("resumed"):
         lines.append(f"- {summary['resumed']} of the cases were finished by an earlier run "
                      f"(resumed); the time above is this run's")
@@ -681,7 +698,7 @@ def render(summary: dict) -> str:
               "| shrinkage | recalibration alone | confidence |",
               "|---|---|---|---|---|---|---|---|---|---|"]
     for r in summary["results"]:
-        ok = "yes" if r["correct"] else "**no**"
+        ok = "yes" if r["correct"] else "**no** (warned)" if r.get("warned") else "**no**"
         vis = "" if r["visible"] else " (too small to see)"
         lines.append(f"| {r['case']} | {r['kind']}{vis} | {r['truth']} | {r['verdict']} | "
                      f"{r['subsystem']} | {'yes' if r['calibrated'] else 'no'} | {ok} "

@@ -1,0 +1,101 @@
+"""Which candidates the calibration could imitate on these records: a local collinearity check.
+
+A recalibration that closes the gap rules an effect out only if the knobs could not have taken
+its place. Whether they could depends on what was measured: with both chamber pressures a
+valve delay of 3 ms shows in how each pressure answers the command, which no knob changes; with
+the position alone, the same delay is imitated to within a fraction of the noise bar by smaller
+dead volumes and a little less friction (the air springs stiffen and the piston answers as
+early as before), and `none` would then say nothing about the delay.
+
+The check is linear, at the recalibrated model (a collinearity analysis in the sense of
+identifiability studies of nonlinear models: an effect's sensitivity against the span of the
+nuisance parameters' sensitivities). For each candidate visible at its typical size
+(:func:`diagnose.visibility`), its *signature* s is the change of the normalised residuals
+(:func:`score.residual_vector`, all compared samples, training and held-out) when it is switched
+on at that size on the recalibrated model; J is the calibration knobs' Jacobian there, per
+natural log of each factor (:func:`nuisance.calibration_jacobian`). The knobs' best imitation
+delta minimises
+
+    N / C |s + J delta|^2 + sum_k (delta_k / sigma_k)^2
+
+with N and C the training records' independent evidence and noise (as :mod:`nuisance` weighs
+them) and sigma the hardware's spread (:data:`calibration.SPREAD`): a move the spread makes
+implausible costs as much as the data it buys; each knob stays within its search range
+(:data:`calibration.CALIBRATION`: the recalibration could not go further). What is left, |s + J delta| as a gap [%], is
+what the effect shows that no recalibration can. A candidate whose leftover is below
+:data:`verdict.NOISE_GAP` although its signature is above it is one these records cannot tell
+from parameters that are off: a verdict of no effect does not rule it out, and the diagnosis
+says so.
+
+Linear in the knobs' logs and in the effect's size: it asks whether the directions are
+parallel, not whether a fit would land there (that is :mod:`separation`'s stand-ins, for the
+knobs that did move).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.optimize import lsq_linear
+
+from jetpipe_ros.diagnosis.calibration import CALIBRATION, SPREAD
+from jetpipe_ros.diagnosis.candidates import Candidate, effect_of
+from jetpipe_ros.diagnosis.data import Prepared
+from jetpipe_ros.diagnosis.fit import Fit
+from jetpipe_ros.diagnosis.nuisance import calibration_jacobian
+from jetpipe_ros.diagnosis.score import effective_samples, predict_all, residual_vector
+from jetpipe_ros.diagnosis.verdict import NOISE_GAP
+from jetpipe_ros.model import ModelParams
+
+#: Knob moves [fraction] of an imitation that its description names.
+NAMED_MOVE = 0.02
+
+
+def imitations(prepared: Prepared, nominal: ModelParams, recalibrated: Fit,
+               candidates: Sequence[Candidate]) -> dict[str, dict]:
+    """For each of ``candidates`` (on the recalibrated model ``recalibrated``, a fit of the
+    calibration knobs alone): its signature's gap [%], the gap [%] the knobs' best linear
+    imitation leaves of it, whether that is below :data:`verdict.NOISE_GAP` (``imitated``) and
+    the factors the imitation moves the knobs to (those moved by :data:`NAMED_MOVE` or more)."""
+    if not candidates:
+        return {}
+    knobs = [k.name for k in CALIBRATION.knobs]
+    base_params = recalibrated.params
+    base = residual_vector(prepared, predict_all(base_params, prepared, None), None)
+    jac = calibration_jacobian(prepared, nominal, recalibrated.z, None)
+    root = math.sqrt(effective_samples(recalibrated.train, prepared.dt) / max(
+        recalibrated.train.noise_total, 1e-300))
+    design = np.vstack([root * jac, np.diag([1.0 / SPREAD[k] for k in knobs])])
+    factors = recalibrated.values[CALIBRATION.name]
+    bounds = (np.array([math.log(k.low / factors[k.name]) for k in CALIBRATION.knobs]),
+              np.array([math.log(k.high / factors[k.name]) for k in CALIBRATION.knobs]))
+    bounds = (np.minimum(bounds[0], 0.0), np.maximum(bounds[1], 0.0))  # round-off at a bound
+    out = {}
+    for cand in candidates:
+        on = cand.apply(base_params, dict(cand.typical))
+        sig = residual_vector(prepared, predict_all(on, prepared, None), None) - base
+        target = np.concatenate([-root * sig, np.zeros(len(knobs))])
+        delta = lsq_linear(design, target, bounds=bounds).x
+        left = sig + jac @ delta
+        shown, kept = 100.0 * float(np.linalg.norm(sig)), 100.0 * float(np.linalg.norm(left))
+        out[cand.name] = {
+            "signature_gap_pct": shown, "left_gap_pct": kept,
+            "imitated": shown >= NOISE_GAP > kept,
+            "knobs": {k: math.exp(d) for k, d in zip(knobs, delta)
+                      if abs(math.exp(d) - 1.0) >= NAMED_MOVE},
+        }
+    return out
+
+
+def imitated_effects(found: dict[str, dict]) -> dict[str, dict]:
+    """The imitated candidates of :func:`imitations`, one per effect (its form the knobs
+    imitate best), by effect name."""
+    out: dict[str, dict] = {}
+    for name, row in found.items():
+        effect = effect_of(name)
+        if row["imitated"] and (effect not in out
+                                or row["left_gap_pct"] < out[effect]["left_gap_pct"]):
+            out[effect] = {"candidate": name, **row}
+    return out
