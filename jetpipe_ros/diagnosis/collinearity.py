@@ -21,11 +21,11 @@ delta minimises
 with N and C the training records' independent evidence and noise (as :mod:`nuisance` weighs
 them) and sigma the hardware's spread (:data:`calibration.SPREAD`): a move the spread makes
 implausible costs as much as the data it buys; each knob stays within its search range
-(:data:`calibration.CALIBRATION`: the recalibration could not go further). What is left, |s + J delta| as a gap [%], is
-what the effect shows that no recalibration can. A candidate whose leftover is below
-:data:`verdict.NOISE_GAP` although its signature is above it is one these records cannot tell
-from parameters that are off: a verdict of no effect does not rule it out, and the diagnosis
-says so.
+(:data:`calibration.CALIBRATION`: the recalibration could not go further). What is left,
+|s + J delta| as a gap [%], is what the effect shows that no recalibration can. A candidate
+whose leftover is below :data:`verdict.NOISE_GAP` although its signature is above it is one
+these records cannot tell from parameters that are off: a verdict of no effect does not rule it
+out, and the diagnosis says so.
 
 Linear in the knobs' logs and in the effect's size: it asks whether the directions are
 parallel, not whether a fit would land there (that is :mod:`separation`'s stand-ins, for the

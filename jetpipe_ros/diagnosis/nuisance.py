@@ -93,8 +93,8 @@ def words(report: dict) -> str | None:
 
 def calibration_jacobian(prepared: Prepared, nominal: ModelParams, z: np.ndarray,
                          role: str | None) -> np.ndarray:
-    """d(residuals of the ``role`` samples, all for None) / d(ln factor) of each calibration knob at the
-    unit-scaled knobs ``z`` (:func:`fit.jacobian`)."""
+    """d(residuals of the ``role`` samples, all for None) / d(ln factor) of each calibration
+    knob at the unit-scaled knobs ``z`` (:func:`fit.jacobian`)."""
 
     def residuals(at: np.ndarray) -> np.ndarray:
         params = CALIBRATION.apply(nominal, CALIBRATION.values(at))

@@ -493,7 +493,8 @@ def params_from_tree(tree: Mapping[str, Any], where: str = "",
     Top-level names listed in ``ignore`` (e.g. node-only parameters) are skipped.
     """
     if not isinstance(tree, Mapping):
-        raise ParameterError(f"{where}: expected a mapping of parameters, got {type(tree).__name__}")
+        raise ParameterError(f"{where}: expected a mapping of parameters, "
+                             f"got {type(tree).__name__}")
     sections = [k for k, v in tree.items() if isinstance(v, Mapping) and "ros__parameters" in v]
     if sections or node_name in tree:
         # The ROS layout. Offline there is no namespace: every section that would apply to the

@@ -108,8 +108,8 @@ def seal_substep(y: float, v: float, points: np.ndarray, n: int, d: float, f_a: 
     direction; levels ``g_exit``, ``g_entry`` and full swing ``swing`` [N]: module
     docstring). A w against the branch's direction is a reversal: (y, F(y)) is pushed on the
     stack ``points`` (``n`` of them; the oldest dropped when it is full; from sliding it is the
-    only point already) and the branch turns. Returns (w [m/s], the number of points, the direction, the friction [N] at y + h w with
-    its viscous term); ``points`` changes in place."""
+    only point already) and the branch turns. Returns (w [m/s], the number of points, the
+    direction, the friction [N] at y + h w with its viscous term); ``points`` changes in place."""
     f, k, n = seal_force(y, points, n, d, g_exit, g_entry, swing, length, knee)
     f_v = f_v_exit if d > 0.0 else f_v_entry
     w = (inertia * v + f_a - f) / (inertia + max(k, 0.0) * h + f_v + damping)

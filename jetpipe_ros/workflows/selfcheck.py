@@ -9,8 +9,9 @@ of two sources:
 - ``plant`` (the default): :mod:`jetpipe_ros.plant`, a stand-in for real hardware written apart
   from the candidates, whose effects take other functional forms than the simulator's (an
   energy balance with wall exchange, ISO 6358 leaks, a seal-gap leak, three weighted plays,
-  elasto-plastic friction, a seal as friction-rig records show it, a second-order sensor with gain error and offsets, a continuous
-  delay, a second-order lag, a supply through a drooping regulator and a hose, extra mass)
+  elasto-plastic friction, a seal as friction-rig records show it, a second-order sensor with
+  gain error and offsets, a pneumatic line with distributed dynamics, a port volume behind a
+  filter, a supply through a drooping regulator and a hose, extra mass)
   and include effects on no list (a valve null offset, a pressure-dependent valve gain,
   end-stop cushioning, a load spring, a position transducer's filter: the right answer is
   ``unlisted`` placed in their subsystem); pairs of a strong and a weak effect;
