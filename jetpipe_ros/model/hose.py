@@ -28,7 +28,7 @@ last one into the chamber:
   segment's mean density at the wall temperature, with a friction factor that blends the
   laminar (Hagen-Poiseuille, 64 / Re) and the turbulent (Blasius, 0.3164 Re^-0.25) laws as a
   fourth-power mean, f = ((64 / Re)^4 + (0.3164 Re^-0.25)^4)^(1/4), Re = |w| d / (A mu): smooth
-  in w (the fit's gradients), within 1 % of the nearer law below Re = 600 and above Re = 2400,
+  in w (the fit's gradients), within 1 % of the nearer law below Re = 410 and above Re = 3500,
   19 % above both where they cross (Re = 1187, a flow the transition makes uncertain anyway).
   Written out, R(w) = (K_lam^4 + K_turb^4 |w|^3)^(1/4) / p_m with K_lam = 32 mu l r T / (d^2 A)
   and K_turb = 0.3164 (A mu / d)^(1/4) l r T / (2 d A^2) (:func:`hose_constants`).
