@@ -117,6 +117,11 @@ class Candidate(KnobGroup):
 
     typical: dict[str, float] = field(default_factory=dict)
     fixed: dict[str, Any] = field(default_factory=dict)
+    #: calibration knobs whose signature the effect carries by construction (a hose's volume is
+    #: dead volume): a recalibration may have taken its place, so it is always refitted jointly
+    #: with the calibration, also from the recalibration with these knobs back at nominal
+    #: (:func:`jetpipe_ros.diagnosis.diagnose.fit_effects`)
+    carries: tuple[str, ...] = ()
 
     @property
     def effect(self) -> str:
@@ -167,7 +172,8 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               {"form": "command"}),
     Candidate("valve_delay:line", (Knob("delay", 0.0, 0.008, 0.0),), {"delay": 0.003},
               {"form": "line"}),
-    Candidate("valve_delay:hose", HOSE_KNOBS, {"length": 1.0, "bore": 0.005}, {"form": "hose"}),
+    Candidate("valve_delay:hose", HOSE_KNOBS, {"length": 1.0, "bore": 0.005}, {"form": "hose"},
+              carries=("dead_volume_1", "dead_volume_2")),
     Candidate("valve_lag:first_order", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),),
               {"corner_frequency": 30.0}, {"form": "first_order"}),
     Candidate("valve_lag:second_order", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),

@@ -90,7 +90,12 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
     a grid there (:func:`fit.fit`), and the lower training error of the two joint fits is kept.
     A candidate that removes less than :data:`JOINT_MIN` of the noise variance from the training
     error both alone and on the recalibrated model is not refitted: at that size it could not
-    show. Returns the fits alone by candidate, and the calibrated fits."""
+    show; unless it carries calibration knobs' signatures by construction
+    (:attr:`candidates.Candidate.carries`: a hose's volume is dead volume). Such a candidate
+    shows nothing on top of a recalibration that took its volume, nor alone beside the bench's
+    other deviations, whatever its size; so it is refitted jointly, and also from the
+    recalibration with the knobs it carries back at nominal (with those at a bound, if any, as
+    above). Returns the fits alone by candidate, and the calibrated fits."""
     progress(f"fitting {len(names)} candidates alone and on the recalibrated model")
     n = len(names)
     fits = fitter.run([Job(nominal, (e,)) for e in names] + [Job(cal.params, (e,))
@@ -99,8 +104,8 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
     alone = dict(zip(names, fits[:n]))
     onto = [stacked(cal, f) for f in fits[n:]]
     todo = [(e, f) for e, f in zip(names, onto)
-            if max(_removed(nom_train, alone[e].train),
-                   _removed(cal.train, f.train)) >= JOINT_MIN]
+            if CANDIDATES[e].carries or max(_removed(nom_train, alone[e].train),
+                                            _removed(cal.train, f.train)) >= JOINT_MIN]
     progress(f"refitting {len(todo)} candidates jointly with the calibration knobs "
              f"({', '.join(e for e, _ in todo) or 'none'})")
     best = {f.name: f for f in onto}
@@ -116,16 +121,20 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
         [f"{e} + calibration, jointly" for e, _ in todo]))
     suspect = calibration.at_bound(cal.values[CAL])
     left = min((f.train.gap for f in best.values()), default=0.0)
-    if suspect and todo and left >= NOISE_GAP:
+    if not (suspect and left >= NOISE_GAP):
+        suspect = []
+    elif todo:
         progress(f"{', '.join(suspect)} at a bound and {left:.2f} % of the training gap left: "
                  f"refitting from there back at nominal")
-        reset = np.array([k.to_unit(k.off) if k.name in suspect else z
-                          for k, z in zip(CALIBRATION.knobs, cal.z)])
-        keep(fitter.run([Job(nominal, f.groups, None, JOINT_BUDGET,
-                             grid_base=np.concatenate([reset, calibration.group(e).start()]))
-                         for e, f in todo],
-                        [f"{e} + calibration, jointly, {', '.join(suspect)} from nominal"
-                         for e, _ in todo]))
+    again = [(e, f, [k.name for k in CALIBRATION.knobs
+                     if k.name in suspect or k.name in CANDIDATES[e].carries])
+             for e, f in todo]
+    again = [(e, f, reset) for e, f, reset in again if reset]
+    keep(fitter.run([Job(nominal, f.groups, None, JOINT_BUDGET, grid_base=np.concatenate([
+        [k.to_unit(k.off) if k.name in reset else z for k, z in zip(CALIBRATION.knobs, cal.z)],
+        calibration.group(e).start()])) for e, f, reset in again],
+        [f"{e} + calibration, jointly, {', '.join(reset)} from nominal"
+         for e, _, reset in again]))
     return alone, [best[f.name] for f in onto]
 
 
