@@ -158,14 +158,22 @@ def fit_pairs(fitter: Fitter, nominal: ModelParams, best: Fit, singles: Mapping[
     error and a bias), and forward selection from it then pairs the stand-in with the strong
     effect and never tries the weak one beside it.
 
+    A candidate that carries calibration knobs (:attr:`candidates.Candidate.carries`) shows
+    nothing on top of a base that holds them where they took its place (a hose beside a weak
+    leak, on top of the leak's single fit, removed nothing): so the same again from its own
+    single fit, where that did not vanish, unless a round started there already.
+
     A joint refit may switch a member off (every knob back where the effect vanishes) and leave
     the other doing the work: that pair is the other effect alone, from a start its own fit did
     not reach, so it is refitted without the vanished member from there. Returns the pairs and
     those refitted singles."""
     pairs = _grow(fitter, nominal, best, [e for e in names
                                           if effect_of(e) not in best.effect_names], progress)
-    for pair in list(pairs):
-        (second,) = [g for g in pair.effects if g not in best.effects]
+    seconds = [g for pair in pairs for g in pair.effects if g not in best.effects]
+    carriers = [e for e in names if CANDIDATES[e].carries and e not in best.effects
+                and e not in seconds and e in singles
+                and not CANDIDATES[e].vanishes(singles[e].values[e])]
+    for second in seconds + carriers:
         base = singles[second]
         pairs += _grow(fitter, nominal, base, [e for e in names if e not in best.effects and
                                                effect_of(e) not in base.effect_names
