@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from jetpipe_ros.diagnosis.candidates import CANDIDATES
 from jetpipe_ros.model import Actuator, ModelParams, build_constants, kernel, simulate
 from jetpipe_ros.model.flow import GAMMA_AIR
 from jetpipe_ros.model.hose import HOSE_STATES, SEGMENTS
@@ -141,3 +142,16 @@ def test_the_diagnosis_equation_errors_see_the_hose():
     own = rms_error(P, P)
     assert rms_error(with_hose, with_hose) < 2.0 * own
     assert rms_error(with_hose, P) > 10.0 * rms_error(with_hose, with_hose)
+
+
+def test_the_hose_candidate_vanishes_with_its_length_and_reads_its_bore_as_an_extent():
+    """valve_delay:hose: at length 0 it changes nothing whatever the bore (the bore spans the
+    tubing's extent); a length at the 2.5 m edge of its search range is pinned (the truth may
+    lie beyond), a bore at 2 or 8 mm is not; and it carries the dead volumes, whose signature
+    its volume has."""
+    hose_candidate = CANDIDATES["valve_delay:hose"]
+    assert hose_candidate.vanishes({"length": 0.0, "bore": 0.008})
+    assert not hose_candidate.vanishes({"length": 0.1, "bore": 0.005})
+    assert hose_candidate.pinned({"length": 2.5, "bore": 0.008}) == ["length"]
+    assert hose_candidate.pinned({"length": 1.0, "bore": 0.002}) == []
+    assert set(hose_candidate.carries) == {"dead_volume_1", "dead_volume_2"}

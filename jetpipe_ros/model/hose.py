@@ -58,8 +58,8 @@ INERTANCE_FACTOR = (4.0 * SEGMENTS * math.sin(math.pi / (2.0 * (2 * SEGMENTS + 1
 VISCOSITY = 1.84e-5
 #: Largest product of the quarter wave's angular frequency [rad/s] and the inner step [s].
 STEP_LIMIT = 0.25
-#: Most inner steps per sub-step: hoses shorter than 0.17 m (at 4 sub-steps of 1 ms) step their
-#: quarter wave, above 500 Hz and ten times the valve's 50 Hz, more coarsely (w h = 0.68 at
+#: Most inner steps per sub-step: hoses shorter than 0.14 m (at 4 sub-steps of 1 ms) step their
+#: quarter wave, above 600 Hz and ten times the valve's 50 Hz, more coarsely (w h = 0.68 at
 #: 5 cm: frequency off by 4 %), which the trapezoid keeps stable; a fit that tries lengths near
 #: 0 costs at most four times a sub-step's hose.
 MAX_STEPS = 4

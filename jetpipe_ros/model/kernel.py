@@ -323,7 +323,8 @@ def _lagged_flow(lag: np.ndarray, q: float, rate: float, q_v: float, p: float
 
 #: Pressure step [Pa] of the finite difference giving the map's slope at a hose's valve end.
 HOSE_SLOPE_STEP = 100.0
-#: Flow [kg/s] probing a chamber's pressure rate per inflow beside a hose.
+#: Flow [kg/s] probing a chamber's pressure rate per inflow beside a hose (with the wall heat
+#: exchange; without it the rate is linear in the flow, n r T / V).
 HOSE_PROBE = 1e-3
 
 
@@ -553,13 +554,18 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
                         c.power_cross, c.power_atm, c.leak_exponent, c.r_gas, c.t_wall, c.rt,
                         c.area, c.v01, c.v02, c.polytropic, c.heat_transfer, y, v, p1, p2, t1,
                         t2)
-                    gain1, gain2, _, _ = _chamber_rates(
-                        HOSE_PROBE, HOSE_PROBE, c.leak_cross, c.leak_atm, c.orifice_cross,
-                        c.orifice_atm, c.power_cross, c.power_atm, c.leak_exponent, c.r_gas,
-                        c.t_wall, c.rt, c.area, c.v01, c.v02, c.polytropic, c.heat_transfer, y,
-                        v, p1, p2, t1, t2)
-                    gain1 = (gain1 - rate1) / HOSE_PROBE
-                    gain2 = (gain2 - rate2) / HOSE_PROBE
+                    if c.heat_transfer > 0.0:
+                        gain1, gain2, _, _ = _chamber_rates(
+                            HOSE_PROBE, HOSE_PROBE, c.leak_cross, c.leak_atm, c.orifice_cross,
+                            c.orifice_atm, c.power_cross, c.power_atm, c.leak_exponent,
+                            c.r_gas, c.t_wall, c.rt, c.area, c.v01, c.v02, c.polytropic,
+                            c.heat_transfer, y, v, p1, p2, t1, t2)
+                        gain1 = (gain1 - rate1) / HOSE_PROBE
+                        gain2 = (gain2 - rate2) / HOSE_PROBE
+                    else:  # Eq. 11-12 times n: n r T / V per kg/s
+                        vol1, vol2 = chamber_volumes(y, c.area, c.v01, c.v02)
+                        gain1 = c.polytropic * c.rt / vol1
+                        gain2 = c.polytropic * c.rt / vol2
                 a = first_row
                 x[a], x[a + 1], x[a + 2], x[a + 3], p1_new, m1, d1 = _hose_substep(
                     coef, u_eq[s], p_s, c.gain_charge, c.gain_discharge, q1, x[a], x[a + 1],
