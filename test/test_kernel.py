@@ -25,6 +25,16 @@ EFFECTS = {
                                      "effects.leakage.enabled": True,
                                      "effects.leakage.form": "power",
                                      "effects.leakage.atmosphere_flow": 2e-5},
+    "hose, flow lag, heat transfer, supply line": {"effects.valve_delay.enabled": True,
+                                                   "effects.valve_delay.form": "hose",
+                                                   "effects.valve_lag.enabled": True,
+                                                   "effects.valve_lag.form": "flow",
+                                                   "effects.thermal.enabled": True,
+                                                   "effects.thermal.form": "heat_transfer",
+                                                   "effects.supply_pressure.enabled": True,
+                                                   "effects.supply_pressure.form": "line"},
+    "short hose": {"effects.valve_delay.enabled": True, "effects.valve_delay.form": "hose",
+                   "effects.valve_delay.length": 0.05},
 }
 
 

@@ -9,7 +9,8 @@ conductance high enough, or a pre-sliding displacement short enough, to be invis
 to data without the effect can land on "no effect". The forms the physics admits are candidates
 of their own, judged on held-out data like the effects: the delay of the command, or of a line
 between valve and chambers (the flow arrives late, and the valve sees the chambers' pressures
-late); the valve lag of first order (a corner)
+late), or a lumped hose before each chamber (its volume, the air's inertance, its wall friction:
+a length and a bore); the valve lag of first order (a corner)
 or second order (a natural frequency and a damping ratio) on the valve's output, or of second
 order on each chamber's mass flow after the flow map (a port or a line; overdamped, zeta > 1,
 it is a first-order lag up to the frequencies it passes); the thermal effect as a polytropic
@@ -116,6 +117,11 @@ class Candidate(KnobGroup):
 
     typical: dict[str, float] = field(default_factory=dict)
     fixed: dict[str, Any] = field(default_factory=dict)
+    #: calibration knobs whose signature the effect carries by construction (a hose's volume is
+    #: dead volume): a recalibration may have taken its place, so it is always refitted jointly
+    #: with the calibration, also from the recalibration with these knobs back at nominal
+    #: (:func:`jetpipe_ros.diagnosis.diagnose.fit_effects`)
+    carries: tuple[str, ...] = ()
 
     @property
     def effect(self) -> str:
@@ -144,6 +150,18 @@ SEAL_ELEMENTS = 3
 SEAL_SIZE = {"presliding_displacement": 5.6e-4, "presliding_spread": 0.052}
 
 
+#: The ``valve_delay:hose`` candidate's knobs. Length [m]: 0 (no hose) to 2.5 m, a one-way delay
+#: of 0-7.2 ms (L / c, c = 346 m/s), beyond the 1-5 ms of docs/effects.md and the 0.3-1.7 m
+#: hoses of real benches, so a real one is not clipped (at 2.5 m and 8 mm it holds 126 cm^3,
+#: over half a chamber). Bore [m]: 2-8 mm, the inner diameters of the pneumatic tubing that
+#: fits a valve of this flow (4-10 mm outer); log-scaled, since the hose's volume grows as
+#: d^2 and its friction falls as d^-4.75 (turbulent). The bore means nothing without a length,
+#: so it is marked as spanning its extent: the candidate vanishes with the length alone, and a
+#: bore at 2 or 8 mm is read as the narrowest or widest tube, not as a truth beyond.
+HOSE_KNOBS = (Knob("length", 0.0, 2.5, 0.0),
+              Knob("bore", 0.002, 0.008, 0.005, log=True, extent=True))
+
+
 def effect_of(name: str) -> str:
     """The effect (docs/effects.md) of a candidate name (``effect`` or ``effect:form``)."""
     return name.split(":", 1)[0]
@@ -154,6 +172,8 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               {"form": "command"}),
     Candidate("valve_delay:line", (Knob("delay", 0.0, 0.008, 0.0),), {"delay": 0.003},
               {"form": "line"}),
+    Candidate("valve_delay:hose", HOSE_KNOBS, {"length": 1.0, "bore": 0.005}, {"form": "hose"},
+              carries=("dead_volume_1", "dead_volume_2")),
     Candidate("valve_lag:first_order", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),),
               {"corner_frequency": 30.0}, {"form": "first_order"}),
     Candidate("valve_lag:second_order", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),

@@ -18,6 +18,7 @@ import numpy as np
 from jetpipe_ros.model import kernel
 from jetpipe_ros.model.flow import P_SUPPLY_NOMINAL, flow_lag_matrix
 from jetpipe_ros.model.friction import FRICTION_FORMS, MAXWELL_SLIP, STATIC, element_slips
+from jetpipe_ros.model.hose import hose_constants, inner_steps
 from jetpipe_ros.model.params import ModelParams
 from jetpipe_ros.model.valve import sample_valve
 
@@ -45,8 +46,12 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
 
     dt = p["integration.sample_time"]
     substeps = p["integration.substeps"]
-    line_delay = (effect("valve_delay", "delay", 0.0)
-                  if p["effects.valve_delay.form"] == "line" else 0.0)
+    delay_form = p["effects.valve_delay.form"]
+    line_delay = effect("valve_delay", "delay", 0.0) if delay_form == "line" else 0.0
+    hose_length = effect("valve_delay", "length", 0.0) if delay_form == "hose" else 0.0
+    rt = p["chamber.gas_constant"] * p["chamber.temperature"]
+    hose = (hose_constants(hose_length, p["effects.valve_delay.bore"], rt) if hose_length > 0.0
+            else (0.0, 0.0, 0.0, 0.0))
     lag_hz = effect("valve_lag", "corner_frequency", 0.0)
     lag_form = p["effects.valve_lag.form"]
     second_order = lag_hz and lag_form == "second_order"
@@ -54,7 +59,8 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
                 if lag_hz and lag_form == "flow" else np.zeros((0, 3)))
     valve = sample_valve(p, dt, substeps,
                          extra_lag_hz=lag_hz if lag_hz and lag_form != "flow" else None,
-                         extra_delay=0.0 if line_delay else effect("valve_delay", "delay", 0.0),
+                         extra_delay=effect("valve_delay", "delay", 0.0)
+                         if delay_form == "command" else 0.0,
                          extra_lag_damping=p["effects.valve_lag.damping_ratio"]
                          if second_order else None)
     planes = np.array([[p[f"friction.{phase}.{q}"] for q in
@@ -87,6 +93,8 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
         line_conductance=p["effects.supply_pressure.line_conductance"] if line else 0.0,
         line_volume=p["effects.supply_pressure.line_volume"],
         flow_lag=flow_lag, line_delay=line_delay * substeps / dt,
+        hose_steps=inner_steps(hose_length, rt, dt / substeps) if hose_length > 0.0 else 0,
+        hose_rate=hose[0], hose_accel=hose[1], hose_laminar=hose[2], hose_turbulent=hose[3],
         leak_cross=p["effects.leakage.cross_coefficient"] if laminar else 0.0,
         leak_atm=p["effects.leakage.atmosphere_coefficient"] if laminar else 0.0,
         orifice_cross=p["effects.leakage.cross_area"] if orifice else 0.0,
@@ -98,7 +106,7 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
         else 1.0,
         heat_transfer=p["effects.thermal.heat_transfer"] if heat_transfer else 0.0,
         r_gas=p["chamber.gas_constant"], t_wall=p["chamber.temperature"],
-        rt=p["chamber.gas_constant"] * p["chamber.temperature"],
+        rt=rt,
         area=p["chamber.piston_area"], v01=p["chamber.dead_volume_1"],
         v02=p["chamber.dead_volume_2"],
         mass=effect("moving_mass", "mass", p["mechanics.mass"]),

@@ -18,7 +18,10 @@ of length h:
    the valve delay's ``line`` form a line between valve and chambers: the map sees each
    chamber's pressure the line's delay ago and its flow reaches the chamber that delay later
    (a history of sub-steps at the end of the state, read between the sub-steps around the
-   delay, so the delay is continuous);
+   delay, so the delay is continuous); with its ``hose`` form a lumped hose between valve and
+   each chamber (:mod:`~jetpipe_ros.model.hose`): the map reads the pressure at the hose's valve
+   end, and the hose's nodes, flows and the chamber's pressure advance together, implicitly,
+   in inner steps;
 4. the piston velocity advances with the viscous friction implicit (F_v/M reaches ~4000 1/s),
    and Eq. 15's stick condition is checked whenever the velocity reaches or crosses zero, so
    stick-slip cannot chatter; with the friction_dynamics effect a LuGre bristle state or
@@ -49,6 +52,7 @@ from jetpipe_ros.model.chamber import (chamber_volumes, pressure_rates,
                                       pressure_temperature_rates)
 from jetpipe_ros.model.flow import (GAMMA_AIR, P_ATM, chamber_inflow, flow_lag_step,
                                     orifice_flow, power_leak)
+from jetpipe_ros.model.hose import HOSE_STATES, hose_step
 from jetpipe_ros.model.friction import (LUGRE, MAX_ELEMENTS, MAXWELL_SLIP, lugre_step,
                                         maxwell_slip_force, maxwell_slip_step, scaled_parameters,
                                         sliding_levels, static_friction, stribeck_force)
@@ -57,7 +61,9 @@ from jetpipe_ros.model.valve import U_EQ_MAX, U_EQ_MIN
 # State layout: scalars (with the flow lag's flows into chambers 1 and 2 [kg/s] and their rates
 # [kg/s^2], the line's write slot), then the hysteresis play operators, the Maxwell-slip
 # elements, the valve chain, and with the line its history: per sub-step a row of
-# LINE_COLUMNS (the pressures at the port [Pa], the flows leaving the valve [kg/s]).
+# LINE_COLUMNS (the pressures at the port [Pa], the flows leaving the valve [kg/s]); with the
+# hose instead, chamber 1's hose then chamber 2's (HOSE_STATES each: the nodes' pressures [Pa]
+# from the valve, then the segments' flows [kg/s]).
 Y, V, P1, P2, STUCK, Z, PS1, PS2, STEP, HEAD, UCMD, UEQ, FRICTION, T1, T2, SUPPLY, \
     FLOW1, RATE1, FLOW2, RATE2, LINE_HEAD = range(21)
 PLAY = 21  #: first of the MAX_PLAY hysteresis play-operator outputs
@@ -101,6 +107,11 @@ class Constants(NamedTuple):
     flow_lag: np.ndarray  #: the flow lag over a sub-step (:func:`flow.flow_lag_matrix`, (3, 3));
     #: (0, 3) = off
     line_delay: float  #: one-way delay of the line between valve and chambers [sub-steps]; 0 = off
+    hose_steps: int  #: inner steps per sub-step of the hose between valve and chambers; 0 = off
+    hose_rate: float  #: a hose node's pressure rate per net inflow gamma r T / (A l) [Pa/kg]
+    hose_accel: float  #: a hose segment's A / (kappa l) [1/m]
+    hose_laminar: float  #: a segment's laminar friction K_lam [Pa^2 s/kg] (:mod:`hose`)
+    hose_turbulent: float  #: a segment's turbulent friction K_turb [Pa^2 s^0.75/kg^0.75]
     leak_cross: float  #: conductance chamber 1 -> 2 [kg/(s Pa)]
     leak_atm: float  #: conductance of each chamber to atmosphere [kg/(s Pa)]
     orifice_cross: float  #: orifice leak area chamber 1 -> 2 [m^2]
@@ -140,12 +151,22 @@ def state_size(c: Constants) -> int:
     chain, and the line's history (:data:`LINE_COLUMNS` per row, enough rows to read
     ``line_delay`` sub-steps back between two rows)."""
     rows = int(math.floor(c.line_delay)) + 2 if c.line_delay > 0.0 else 0
-    return VALVE + c.valve_a.shape[0] + LINE_COLUMNS * rows
+    hoses = 2 * HOSE_STATES if c.hose_steps > 0 else 0
+    return VALVE + c.valve_a.shape[0] + LINE_COLUMNS * rows + hoses
 
 
 def fill_line(c: Constants, x: np.ndarray) -> None:
-    """A line at rest in state ``x``: its history holds the present pressures and no flow."""
-    history = x[VALVE + c.valve_a.shape[0]:].reshape(-1, LINE_COLUMNS)
+    """A line or hose at rest in state ``x``: the line's history holds the present pressures
+    and no flow, each hose's nodes its chamber's pressure and its segments no flow."""
+    first = VALVE + c.valve_a.shape[0]
+    if c.hose_steps > 0:
+        half = HOSE_STATES // 2
+        for i, chamber in enumerate((P1, P2)):
+            at = first + i * HOSE_STATES
+            x[at:at + half] = x[chamber]
+            x[at + half:at + HOSE_STATES] = 0.0
+        return
+    history = x[first:].reshape(-1, LINE_COLUMNS)
     history[:, LINE_P1] = x[P1]
     history[:, LINE_P2] = x[P2]
     history[:, LINE_Q1:] = 0.0
@@ -300,6 +321,45 @@ def _lagged_flow(lag: np.ndarray, q: float, rate: float, q_v: float, p: float
     return (0.0 if mean < 0.0 and p <= P_ATM else mean), q, rate
 
 
+#: Pressure step [Pa] of the finite difference giving the map's slope at a hose's valve end.
+HOSE_SLOPE_STEP = 100.0
+#: Flow [kg/s] probing a chamber's pressure rate per inflow beside a hose (with the wall heat
+#: exchange; without it the rate is linear in the flow, n r T / V).
+HOSE_PROBE = 1e-3
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _hose_substep(coef: np.ndarray, u: float, p_s: float, gain_charge: float,
+                  gain_discharge: float, q_given: float, p0: float, p1: float, w0: float,
+                  w1: float, p_c: float, rate_c: float, gain_c: float, node_rate: float,
+                  accel: float, laminar: float, turbulent: float, h: float, steps: int
+                  ) -> tuple[float, float, float, float, float, float, float]:
+    """A hose and its chamber over a sub-step ``h`` [s] in ``steps`` inner steps
+    (:func:`hose.hose_step`): the map at ``u`` [V] reads the hose's valve end, or with a finite
+    ``q_given`` [kg/s] (the flow lag's) that flow enters it. Returns the new node pressures,
+    flows and chamber pressure, the mean flow into the chamber and the mean flow leaving the
+    valve [kg/s]."""
+    k = 0.5 * h / steps
+    into, sent = 0.0, 0.0
+    mapped = not math.isfinite(q_given)
+    for _ in range(steps):
+        if mapped:
+            q = chamber_inflow(coef, u, p0, p_s, gain_charge, gain_discharge)
+            slope = (chamber_inflow(coef, u, p0 + HOSE_SLOPE_STEP, p_s, gain_charge,
+                                    gain_discharge) - q) / HOSE_SLOPE_STEP
+        else:
+            q, slope = q_given, 0.0
+        slope = min(slope, 0.0)
+        start = p0
+        p0, p1, w0, w1, p_c, mean = hose_step(p0, p1, w0, w1, q, slope, p_c, rate_c, gain_c,
+                                              node_rate, accel, laminar, turbulent, k)
+        sent += q + 0.5 * slope * (p0 - start)  # the trapezoid's mean
+        p0 = max(p0, MIN_PRESSURE)
+        p1 = max(p1, MIN_PRESSURE)
+        into += mean
+    return p0, p1, w0, w1, p_c, into / steps, sent / steps
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def supply_step(p_s: float, p_set: float, conductance: float, drawn: float, decay: float
                 ) -> float:
@@ -341,7 +401,9 @@ def chamber_rates(c: Constants, y: np.ndarray, v: np.ndarray, p1: np.ndarray, p2
     ``c.dt`` apart; so do the flow lag's flows (the map's flow of each row held over it); with
     the line between valve and chambers the map reads the pressures of the rows the line's
     delay back and its flows arrive that delay later (both interpolated between rows; before
-    the first row, the first row's)."""
+    the first row, the first row's); with the hose, each hose (at rest at the first row's
+    pressures) advances over each row with its chamber held at the row's pressure, and the
+    chamber receives its mean flow over the row."""
     n = y.shape[0]
     out = np.empty((6, n))
     du = 1e-3
@@ -352,15 +414,42 @@ def chamber_rates(c: Constants, y: np.ndarray, v: np.ndarray, p1: np.ndarray, p2
     f1, r1, f2, r2 = 0.0, 0.0, 0.0, 0.0
     rows_back = c.line_delay / c.substeps
     sent = np.zeros((2, n))  # flows leaving the valve, row by row (the line's)
+    hose = np.zeros((2, HOSE_STATES))  # each hose's nodes and flows
+    if c.hose_steps > 0 and n:
+        hose[0, :HOSE_STATES // 2] = p1[0]
+        hose[1, :HOSE_STATES // 2] = p2[0]
+    h = c.dt / c.substeps
     for k in range(n):
-        if rows_back > 0.0:
+        if c.hose_steps > 0:
+            q1, q2, drawn = 0.0, 0.0, 0.0
+            for _ in range(c.substeps):
+                given1 = given2 = math.nan
+                if lag.shape[0]:
+                    given1, given2, _ = _valve_flows(c.flow_coef, u_eq[k], hose[0, 0],
+                                                     hose[1, 0], p_s, c.gain_charge,
+                                                     c.gain_discharge)
+                    given1, f1, r1 = _lagged_flow(lag, f1, r1, given1, hose[0, 0])
+                    given2, f2, r2 = _lagged_flow(lag, f2, r2, given2, hose[1, 0])
+                for i, (sign, p, given) in enumerate(((1.0, p1[k], given1),
+                                                      (-1.0, p2[k], given2))):
+                    hose[i, 0], hose[i, 1], hose[i, 2], hose[i, 3], _, m, d = _hose_substep(
+                        c.flow_coef, sign * u_eq[k], p_s, c.gain_charge, c.gain_discharge,
+                        given, hose[i, 0], hose[i, 1], hose[i, 2], hose[i, 3], p, 0.0, 0.0,
+                        c.hose_rate, c.hose_accel, c.hose_laminar, c.hose_turbulent, h,
+                        c.hose_steps)
+                    if i == 0:
+                        q1 += m / c.substeps
+                    else:
+                        q2 += m / c.substeps
+                    drawn += max(d, 0.0) / c.substeps
+        elif rows_back > 0.0:
             q1, q2, drawn = _valve_flows(c.flow_coef, u_eq[k], _row_at(p1, k - rows_back),
                                          _row_at(p2, k - rows_back), p_s, c.gain_charge,
                                          c.gain_discharge)
         else:
             q1, q2, drawn = _valve_flows(c.flow_coef, u_eq[k], p1[k], p2[k], p_s,
                                          c.gain_charge, c.gain_discharge)
-        if lag.shape[0]:
+        if lag.shape[0] and c.hose_steps == 0:
             m1, m2 = 0.0, 0.0
             for _ in range(c.substeps):
                 m, f1, r1 = _lagged_flow(lag, f1, r1, q1, p1[k])
@@ -413,7 +502,9 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
     lag = c.flow_lag
     lagged = lag.shape[0] > 0
     line_on = c.line_delay > 0.0
+    hose_on = c.hose_steps > 0
     first_row = VALVE + c.valve_a.shape[0]
+    hose_2 = first_row + HOSE_STATES
     rows = (x.shape[0] - first_row) // LINE_COLUMNS
     back = int(math.floor(c.line_delay))
     theta = c.line_delay - back  # weight of the older of the two rows read
@@ -444,11 +535,62 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
         f_l = f_load[k]
         # Pressures held on measurements (not by regulators): the valve still draws from the
         # line and feeds the flow lag.
-        flows = pressurise or ((line or lagged or line_on) and not c.regulated)
+        flows = pressurise or ((line or lagged or line_on or hose_on) and not c.regulated)
         slot = int(x[LINE_HEAD])
         row = old = new = first_row
         for s in range(k * ns, (k + 1) * ns):
-            if flows:
+            if flows and hose_on:
+                q1 = q2 = math.nan
+                if lagged:
+                    q1, q2, _ = _valve_flows(coef, u_eq[s], x[first_row], x[hose_2], p_s,
+                                             c.gain_charge, c.gain_discharge)
+                    q1, f1, r1 = _lagged_flow(lag, f1, r1, q1, x[first_row])
+                    q2, f2, r2 = _lagged_flow(lag, f2, r2, q2, x[hose_2])
+                rate1 = rate2 = gain1 = gain2 = 0.0
+                if pressurise:
+                    # What each chamber does without its hose's flow, and per unit of it.
+                    rate1, rate2, _, _ = _chamber_rates(
+                        0.0, 0.0, c.leak_cross, c.leak_atm, c.orifice_cross, c.orifice_atm,
+                        c.power_cross, c.power_atm, c.leak_exponent, c.r_gas, c.t_wall, c.rt,
+                        c.area, c.v01, c.v02, c.polytropic, c.heat_transfer, y, v, p1, p2, t1,
+                        t2)
+                    if c.heat_transfer > 0.0:
+                        gain1, gain2, _, _ = _chamber_rates(
+                            HOSE_PROBE, HOSE_PROBE, c.leak_cross, c.leak_atm, c.orifice_cross,
+                            c.orifice_atm, c.power_cross, c.power_atm, c.leak_exponent,
+                            c.r_gas, c.t_wall, c.rt, c.area, c.v01, c.v02, c.polytropic,
+                            c.heat_transfer, y, v, p1, p2, t1, t2)
+                        gain1 = (gain1 - rate1) / HOSE_PROBE
+                        gain2 = (gain2 - rate2) / HOSE_PROBE
+                    else:  # Eq. 11-12 times n: n r T / V per kg/s
+                        vol1, vol2 = chamber_volumes(y, c.area, c.v01, c.v02)
+                        gain1 = c.polytropic * c.rt / vol1
+                        gain2 = c.polytropic * c.rt / vol2
+                a = first_row
+                x[a], x[a + 1], x[a + 2], x[a + 3], p1_new, m1, d1 = _hose_substep(
+                    coef, u_eq[s], p_s, c.gain_charge, c.gain_discharge, q1, x[a], x[a + 1],
+                    x[a + 2], x[a + 3], p1, rate1, gain1, c.hose_rate, c.hose_accel,
+                    c.hose_laminar, c.hose_turbulent, h, c.hose_steps)
+                a = hose_2
+                x[a], x[a + 1], x[a + 2], x[a + 3], p2_new, m2, d2 = _hose_substep(
+                    coef, -u_eq[s], p_s, c.gain_charge, c.gain_discharge, q2, x[a], x[a + 1],
+                    x[a + 2], x[a + 3], p2, rate2, gain2, c.hose_rate, c.hose_accel,
+                    c.hose_laminar, c.hose_turbulent, h, c.hose_steps)
+                if pressurise:
+                    if c.heat_transfer > 0.0:
+                        _, _, dt1, dt2 = _chamber_rates(
+                            m1, m2, c.leak_cross, c.leak_atm, c.orifice_cross, c.orifice_atm,
+                            c.power_cross, c.power_atm, c.leak_exponent, c.r_gas, c.t_wall,
+                            c.rt, c.area, c.v01, c.v02, c.polytropic, c.heat_transfer, y, v, p1,
+                            p2, t1, t2)
+                        t1 = max(t1 + h * dt1, 1.0)
+                        t2 = max(t2 + h * dt2, 1.0)
+                    p1 = max(p1_new, MIN_PRESSURE)
+                    p2 = max(p2_new, MIN_PRESSURE)
+                if line:
+                    p_s = supply_step(p_s, c.p_supply, c.line_conductance,
+                                      max(d1, 0.0) + max(d2, 0.0), line_decay)
+            elif flows:
                 if line_on:
                     # The port's pressures of line_delay sub-steps ago.
                     row = first_row + LINE_COLUMNS * slot

@@ -64,7 +64,7 @@ THERMAL_FORMS = ("polytropic", "heat_transfer")
 LEAKAGE_FORMS = ("laminar", "orifice", "power")
 SUPPLY_FORMS = ("constant", "line")
 LAG_FORMS = ("first_order", "second_order", "flow")
-DELAY_FORMS = ("command", "line")
+DELAY_FORMS = ("command", "line", "hose")
 DYNAMIC_FRICTION_FORMS = tuple(FRICTION_FORMS)
 FRICTION_UNITS = {"breakaway": "N", "stribeck_velocity": "m/s", "viscous": "N s/m", "coulomb": "N"}
 
@@ -185,9 +185,14 @@ _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
     "valve_delay": [
         _p("form", "command", "Where the delay acts: on the valve command (command), or in a "
            "line between valve and chambers (line: the valve sees each chamber's pressure "
-           "delay ago, and its flow reaches the chamber delay later)", choices=DELAY_FORMS),
-        _p("delay", 0.002, "Extra transport delay (form line: one way along the line)", "s",
-           0.0, 0.05),
+           "delay ago, and its flow reaches the chamber delay later; hose: a lumped hose of a "
+           "length and a bore before each chamber, its volume, air inertance and wall "
+           "friction, the valve reading the pressure at its valve end)", choices=DELAY_FORMS),
+        _p("delay", 0.002, "Extra transport delay (forms command and line; form line: one way "
+           "along the line)", "s", 0.0, 0.05),
+        _p("length", 1.0, "Length of the hose before each chamber (form hose; 0 = none): a "
+           "one-way delay of length / c, c = 346 m/s at 25 degC", "m", 0.0, 20.0),
+        _p("bore", 0.005, "Inner diameter of the hose (form hose)", "m", 5e-4, 0.05),
     ],
     "valve_lag": [
         _p("form", "first_order", "Lag on the valve's output: first order (a corner), or "
