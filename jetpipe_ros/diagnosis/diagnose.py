@@ -440,16 +440,11 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
 
 def _not_ruled_out(hidden: Mapping[str, dict]) -> str:
     """Words for the effects the recalibration could imitate (:func:`imitated_effects`)."""
-    def largest(knobs: Mapping[str, float]) -> dict[str, float]:
-        return dict(sorted(knobs.items(), key=lambda kv: -abs(np.log(kv[1])))[:2])
-
-    each = "; ".join(
-        f"{row['candidate']} {row['signature_gap_pct']:.2f} % -> {row['left_gap_pct']:.2f} % "
-        f"({', '.join(calibration.describe(largest(row['knobs'])))}, ...)"
-        for e, row in sorted(hidden.items()))
+    each = ", ".join(f"{row['candidate']} {row['signature_gap_pct']:.2f} % -> "
+                     f"{row['left_gap_pct']:.2f} %" for _, row in sorted(hidden.items()))
     return (f"these records cannot rule out {', '.join(sorted(hidden))}: at its typical size "
             f"the recalibration imitates each to within the {NOISE_GAP} % that counts as beyond "
-            f"noise ({each})")
+            f"noise ({each}; the knobs in visibility.imitated_by_recalibration)")
 
 
 def cannot_judge(prepared: Prepared) -> dict[str, str]:

@@ -307,6 +307,13 @@ def summary(result: dict) -> str:
         lines.append("At their typical size these effects would not show in these "
                      "experiments (the data cannot tell): "
                      + ", ".join(f"<code>{h}</code>" for h in hidden) + ".")
+    imitated = result["visibility"].get("not_ruled_out", [])
+    if imitated:
+        lines.append("<b>Not ruled out</b> by this answer: "
+                     + ", ".join(f"<code>{e}</code>" for e in imitated)
+                     + ". At its typical size the recalibration imitates each on these records "
+                     "(see <i>What these experiments can show</i>): a record with "
+                     "another sensor or experiment is needed to tell.")
     return "<p>" + "</p><p>".join(lines) + "</p>"
 
 
