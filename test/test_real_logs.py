@@ -75,6 +75,33 @@ def nominal_record(tmp_path_factory):
     return record(tmp_path_factory.mktemp("nominal") / "data", ModelParams())
 
 
+@pytest.fixture(scope="module")
+def parameters_only_recalibrated(tmp_path_factory):
+    """An actuator whose parameters alone are off (the self-check's individual spreads, seed
+    11), its short campaign read with both pressures, then with the position alone: per sensor
+    set, the calibration knobs fitted to the training records alone, the recalibration
+    (:func:`diagnose.recalibrate`, nuisance directions included) and the prepared records."""
+    from jetpipe_ros.diagnosis.calibration import CALIBRATION
+    from jetpipe_ros.diagnosis.diagnose import recalibrate
+    from jetpipe_ros.diagnosis.fit import fit
+    from jetpipe_ros.diagnosis.noise_floor import calibrate
+    from jetpipe_ros.workflows.selfcheck import deviations
+
+    changes, _ = deviations(np.random.default_rng(11), ModelParams())
+    root = record(tmp_path_factory.mktemp("parameters_only") / "data",
+                  ModelParams().with_values(changes))
+    found = {}
+    for label in ("both", "position"):
+        if label == "position":
+            relog(root, drop=("p1", "p2"))
+        prepared = prepare(read_dataset(root))
+        prepared.floor, prepared.floor_windows = calibrate(prepared, ModelParams())
+        alone = fit(prepared, ModelParams(), [CALIBRATION], CALIBRATION.start(), 150)
+        cal = recalibrate(prepared, ModelParams(), lambda message: None)
+        found[label] = (alone, cal, prepared)
+    return found
+
+
 @pytest.mark.parametrize("rows", [0, 1, 2, -1])
 def test_an_offset_of_whole_rows_is_measured_and_read(nominal_record, tmp_path, rows):
     """Measurements k rows early read as -k ms by the model's delay (within 0.2 ms) and as a
@@ -243,34 +270,19 @@ def test_an_unmeasured_pressure_does_not_raise_the_noise_floor(nominal_record, t
         assert floor[s] == pytest.approx(clean[s], rel=0.3), s
 
 
-def test_knobs_the_position_alone_leaves_free_are_fitted_on_all_records(tmp_path):
+def test_knobs_the_position_alone_leaves_free_are_fitted_on_all_records(
+        parameters_only_recalibrated):
     """An actuator whose parameters alone are off (the self-check's individual spreads), seen
     by the position alone: nothing in the training experiments pins the chambers' dead volumes
     (the locked charge test has no position to compare), which the held-out 3 V square's end
     stops depend on. The recalibration from the training records alone then misses the held-out
     data by more than the 0.5 % bar; with the directions the training leaves free fitted on all
     records (a dead volume among them) it does not. With both pressures no direction is free."""
-    from jetpipe_ros.diagnosis.diagnose import recalibrate
-    from jetpipe_ros.diagnosis.fit import fit
-    from jetpipe_ros.diagnosis.calibration import CALIBRATION
-    from jetpipe_ros.diagnosis.noise_floor import calibrate
     from jetpipe_ros.diagnosis.verdict import NOISE_GAP
-    from jetpipe_ros.workflows.selfcheck import deviations
 
-    changes, _ = deviations(np.random.default_rng(11), ModelParams())
-    root = record(tmp_path / "data", ModelParams().with_values(changes))
-    found = {}
-    for label in ("both", "position"):
-        if label == "position":
-            relog(root, drop=("p1", "p2"))
-        prepared = prepare(read_dataset(root))
-        prepared.floor, prepared.floor_windows = calibrate(prepared, ModelParams())
-        alone = fit(prepared, ModelParams(), [CALIBRATION], CALIBRATION.start(), 150)
-        cal = recalibrate(prepared, ModelParams(), lambda message: None)
-        found[label] = (alone, cal, prepared)
-    _, _, both = found["both"]
+    _, _, both = parameters_only_recalibrated["both"]
     assert both.nuisance is None and both.nuisance_report["directions"] == []
-    alone, cal, position = found["position"]
+    alone, cal, position = parameters_only_recalibrated["position"]
     assert position.nuisance is not None and position.nuisance.shape[0] == 10
     free = {k for d in position.nuisance_report["directions"] for k in d["knobs"]}
     assert free & {"dead_volume_1", "dead_volume_2"}, free
@@ -279,7 +291,8 @@ def test_knobs_the_position_alone_leaves_free_are_fitted_on_all_records(tmp_path
     assert any("fitted on all records" in n for n in position.notes)
 
 
-def test_a_delay_the_recalibration_imitates_on_the_position_alone_is_not_ruled_out(tmp_path):
+def test_a_delay_the_recalibration_imitates_on_the_position_alone_is_not_ruled_out(
+        parameters_only_recalibrated):
     """An actuator whose parameters alone are off, seen by the position alone: a typical 3 ms
     valve delay changes the held-out position by more than the 0.5 % bar (its signature), yet
     smaller dead volumes (stiffer air springs: the piston answers as early as before) and a
@@ -288,21 +301,10 @@ def test_a_delay_the_recalibration_imitates_on_the_position_alone_is_not_ruled_o
     what no knob changes: more than the bar is left, and it is not imitated."""
     from jetpipe_ros.diagnosis.candidates import CANDIDATES
     from jetpipe_ros.diagnosis.collinearity import imitated_effects, imitations
-    from jetpipe_ros.diagnosis.diagnose import recalibrate
-    from jetpipe_ros.diagnosis.noise_floor import calibrate
     from jetpipe_ros.diagnosis.verdict import NOISE_GAP
-    from jetpipe_ros.workflows.selfcheck import deviations
 
-    changes, _ = deviations(np.random.default_rng(11), ModelParams())
-    root = record(tmp_path / "data", ModelParams().with_values(changes))
-    found = {}
-    for label in ("both", "position"):
-        if label == "position":
-            relog(root, drop=("p1", "p2"))
-        prepared = prepare(read_dataset(root))
-        prepared.floor, prepared.floor_windows = calibrate(prepared, ModelParams())
-        cal = recalibrate(prepared, ModelParams(), lambda message: None)
-        found[label] = imitations(prepared, ModelParams(), cal, [CANDIDATES["valve_delay"]])
+    found = {label: imitations(prepared, ModelParams(), cal, [CANDIDATES["valve_delay"]])
+             for label, (_, cal, prepared) in parameters_only_recalibrated.items()}
     both, alone = found["both"]["valve_delay"], found["position"]["valve_delay"]
     assert both["signature_gap_pct"] > NOISE_GAP and alone["signature_gap_pct"] > NOISE_GAP
     assert both["left_gap_pct"] > 2 * NOISE_GAP and not both["imitated"]

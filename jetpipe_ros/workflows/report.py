@@ -417,7 +417,6 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
                  f"{cal['recalibration_alone'][k]:.3f}"] for k, x in cal["knobs"].items()]
     vis = result["visibility"]["at_typical_size_gap_pct"]
     imitated = result["visibility"].get("imitated_by_recalibration", {})
-    not_ruled_out = result["visibility"].get("not_ruled_out", [])
     vis_rows = [[e, x, "yes" if x >= result["visibility"]["threshold_gap_pct"] else "no",
                  imitated[e]["left_gap_pct"] if e in imitated else "-"]
                 for e, x in vis.items()]
@@ -466,14 +465,11 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
         "<h2>What these experiments can show</h2>",
         "<p>Signature of each candidate at its typical size: the held-out gap [%] it would open "
         "on these experiments; below the 0.5 % that counts as beyond noise the data cannot tell "
-        "whether it is there.</p>",
+        "whether it is there. The last column is what is left of it once the recalibration's "
+        "knobs imitate it as best they can: below 0.5 %, an answer of no effect does not rule "
+        "it out.</p>",
         _table(vis_rows, ["candidate", "gap at typical size [%]", "visible",
                           "left after the knobs imitate it [%]"]),
-        (f"<p><b>Not ruled out:</b> "
-         f"{', '.join(f'<code>{html.escape(e)}</code>' for e in not_ruled_out)}: the "
-         f"recalibration imitates each on these records (the last column below "
-         f"{result['visibility']['threshold_gap_pct']} %), so finding no effect does not mean "
-         f"they are absent.</p>" if not_ruled_out else ""),
         "<h2>Data</h2>",
         f"<p>Split: {html.escape(data['split'])}. Sample time {data['sample_time_s'] * 1e3:g} "
         f"ms. Signals measured: {', '.join(data.get('sensors', ['y', 'p1', 'p2']))}. "
