@@ -63,7 +63,7 @@ LAMINAR_RATIO = 0.999
 AIR_VISCOSITY = 1.84e-5
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def volumes(y: float, area: float, v01: float, v02: float) -> tuple[float, float]:
     """Eq. 13: the chambers' volumes [m^3] with the piston at ``y`` [m] (positive enlarges
     chamber 1), piston area ``area`` [m^2], volumes ``v01``, ``v02`` [m^3] at y = 0."""

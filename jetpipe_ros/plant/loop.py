@@ -48,7 +48,7 @@ from jetpipe_ros.plant.valve import (U_EQ_HIGH, U_EQ_LOW, chain_output, chain_su
                                      valve_inflow, weighted_plays)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _valve(c: PlantConstants, x: np.ndarray, xv: np.ndarray, ring: np.ndarray, head: int,
            j: int) -> float:
     """u_eq [V] over sub-step ``j`` of the sample whose command is at ``ring[head]`` (the
@@ -63,7 +63,7 @@ def _valve(c: PlantConstants, x: np.ndarray, xv: np.ndarray, ring: np.ndarray, h
     return min(max(c.valve_gain * u_f + c.null_offset, U_EQ_LOW), U_EQ_HIGH)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _passage(c: PlantConstants, x: np.ndarray, u_eq: float, chamber: int, p_chamber: float,
              h: float) -> tuple[float, float]:
     """Advance the port and the line before one chamber (``chamber`` 0 or 1, at ``p_chamber``
@@ -101,7 +101,7 @@ def _passage(c: PlantConstants, x: np.ndarray, u_eq: float, chamber: int, p_cham
     return received / n, valve / n
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _valve_flows(c: PlantConstants, x: np.ndarray, u_eq: float, h: float
                  ) -> tuple[float, float]:
     """The flows [kg/s] reaching chambers 1 and 2 over the sub-step through the ports and the
@@ -112,7 +112,7 @@ def _valve_flows(c: PlantConstants, x: np.ndarray, u_eq: float, h: float
     return q1, q2
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _supply(c: PlantConstants, x: np.ndarray, regulator_decay: float, hose_decay: float
             ) -> None:
     """Advance the regulator and the hose one sub-step (valve docstring), the flow the valve
@@ -124,12 +124,12 @@ def _supply(c: PlantConstants, x: np.ndarray, regulator_decay: float, hose_decay
     x[SUPPLY] = line + (x[SUPPLY] - line) * hose_decay
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _temperature(c: PlantConstants, x: np.ndarray, m: int, e: int) -> float:
     return x[e] / (x[m] * c.cv) if c.thermal else c.t_wall
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _vent(c: PlantConstants, x: np.ndarray, m: int, e: int, p: float, t: float, vol: float,
           kappa: float, h: float) -> None:
     """Leak one chamber (mass at ``m``, energy at ``e``) to atmosphere over a sub-step; air
@@ -141,7 +141,7 @@ def _vent(c: PlantConstants, x: np.ndarray, m: int, e: int, p: float, t: float, 
         x[e] -= (c.cv + c.r_gas) * t_up * dm
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _flows(c: PlantConstants, x: np.ndarray, u_eq: float, vol1: float, vol2: float,
            h: float, q1: float, q2: float) -> None:
     """Move gas through the valve and the leaks over a sub-step at fixed volume; the valve's
@@ -182,7 +182,7 @@ def _flows(c: PlantConstants, x: np.ndarray, u_eq: float, vol1: float, vol2: flo
         _vent(c, x, M2, E2, p2, t2, vol2, kappa, h)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _pressures(c: PlantConstants, x: np.ndarray, vol1: float, vol2: float) -> None:
     if c.thermal:
         x[P1] = (GAMMA_AIR - 1.0) * x[E1] / vol1
@@ -192,7 +192,7 @@ def _pressures(c: PlantConstants, x: np.ndarray, vol1: float, vol2: float) -> No
         x[P2] = x[M2] * c.r_gas * c.t_wall / vol2
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _friction(c: PlantConstants, x: np.ndarray, f: float, damping: float, h: float,
               points: np.ndarray) -> tuple[float, bool, float, float, int, float]:
     """(velocity, stuck, bristle deflection, friction, the measured seal's number of reversal
@@ -215,7 +215,7 @@ def _friction(c: PlantConstants, x: np.ndarray, f: float, damping: float, h: flo
     return w, stuck, x[Z], friction, int(x[SEAL_N]), x[SEAL_D]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _mechanics(c: PlantConstants, x: np.ndarray, f_load: float, h: float,
                points: np.ndarray) -> None:
     """Advance piston velocity and position one sub-step (mechanics docstring); ``points`` is

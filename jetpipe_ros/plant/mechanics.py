@@ -67,7 +67,7 @@ FLOOR_STRIBECK = 1e-4
 F_S, V_S, F_V, F_C = range(4)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def friction_parameters(planes: np.ndarray, direction: float, p1: float, p2: float
                         ) -> tuple[float, float, float, float]:
     """Signed (F_S [N], v_s [m/s], F_v [N s/m], F_C [N]) for motion in ``direction`` (+1 exit,
@@ -88,13 +88,13 @@ def friction_parameters(planes: np.ndarray, direction: float, p1: float, p2: flo
     return f_s, v_s, f_v, f_c
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def stribeck_force(v: float, f_s: float, v_s: float, f_c: float) -> float:
     """Eq. 18 without its viscous term [N] at velocity ``v`` [m/s]."""
     return f_c + (f_s - f_c) * math.exp(-(v / v_s) ** 2)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def static_friction(f_applied: float, f_s: float) -> float:
     """Eq. 15 at rest [N]: what balances ``f_applied`` [N], at most |``f_s``|."""
     if f_applied > abs(f_s):
@@ -104,14 +104,14 @@ def static_friction(f_applied: float, f_s: float) -> float:
     return f_applied
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def stribeck_slope(v: float, f_s: float, v_s: float, f_c: float) -> float:
     """d F_st / dv of Eq. 18's Stribeck term [N s/m]."""
     r = v / v_s
     return -2.0 * r / v_s * (f_s - f_c) * math.exp(-r * r)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def sliding_velocity(v: float, f_a: float, inertia: float, damping: float, direction: float,
                      f_s: float, v_s: float, f_c: float) -> float:
     """Velocity [m/s] after a sub-step sliding in ``direction`` (+-1): the root w of
@@ -152,7 +152,7 @@ def sliding_velocity(v: float, f_a: float, inertia: float, damping: float, direc
     return w * direction
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def stick_slip(v: float, stuck: bool, f_a: float, planes: np.ndarray, p1: float, p2: float,
                inertia: float, damping: float) -> tuple[float, bool, float]:
     """One sub-step of the nominal friction: (velocity [m/s], stuck, friction [N]) from
@@ -171,7 +171,7 @@ def stick_slip(v: float, stuck: bool, f_a: float, planes: np.ndarray, p1: float,
     return w, False, stribeck_force(w, f_s, v_s, f_c) + f_v * w
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def plasticity(z: float, v: float, z_ba: float, z_ss: float) -> float:
     """alpha(z, v) of the elasto-plastic model [-] (module docstring)."""
     if v == 0.0 or z * v <= 0.0:
@@ -184,7 +184,7 @@ def plasticity(z: float, v: float, z_ba: float, z_ss: float) -> float:
     return 0.5 + 0.5 * math.sin(math.pi * (a - 0.5 * (z_ss + z_ba)) / (z_ss - z_ba))
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def bristles(v: float, z: float, f_a: float, planes: np.ndarray, p1: float, p2: float,
              inertia: float, damping: float, h: float, sigma0: float, sigma1: float,
              v_damp: float, fraction: float) -> tuple[float, float, float]:
@@ -212,7 +212,7 @@ def bristles(v: float, z: float, f_a: float, planes: np.ndarray, p1: float, p2: 
     return w, z_new, friction
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def directional_levels(planes: np.ndarray, v: float, p1: float, p2: float
                        ) -> tuple[float, float, float, float]:
     """The Stribeck curve (Eq. 18)'s magnitude |F_st(v)| [N] in the exit and the entry direction

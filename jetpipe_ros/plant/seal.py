@@ -51,7 +51,7 @@ def length_of(presliding: float, knee: float) -> float:
     return presliding * (0.1 + knee) / (0.9 * knee)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def branch_force(y: float, x_r: float, f_r: float, d: float, swing: float, level: float,
                  length: float, knee: float) -> tuple[float, float, bool]:
     """The seal's friction [N] (without the viscous term) at position ``y`` [m] on the branch
@@ -71,7 +71,7 @@ def branch_force(y: float, x_r: float, f_r: float, d: float, swing: float, level
     return f, slope, False
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def seal_force(y: float, points: np.ndarray, n: int, d: float, g_exit: float, g_entry: float,
                swing: float, length: float, knee: float) -> tuple[float, float, int]:
     """Friction [N] at ``y`` [m] and its stiffness [N/m] on the branch that left the newest of
@@ -95,7 +95,7 @@ def seal_force(y: float, points: np.ndarray, n: int, d: float, g_exit: float, g_
         return f, slope, n
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def seal_substep(y: float, v: float, points: np.ndarray, n: int, d: float, f_a: float,
                  inertia: float, damping: float, h: float, g_exit: float, g_entry: float,
                  swing: float, f_v_exit: float, f_v_entry: float, length: float, knee: float

@@ -39,7 +39,7 @@ from jetpipe_ros.plant.constants import (FRICTION, P1, P2, POSITION, SENSOR1, SE
                                          UCMD, UEQ, V, Y, PlantConstants)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _reading(c: PlantConstants, s: float) -> float:
     """The transducer's reading [Pa] of its diaphragm's pressure ``s`` [Pa], before its offset:
     s + 4 N x (1 - x), x = (s - p_0) / P (module docstring)."""

@@ -107,7 +107,7 @@ def jet_flow(u: float, p_bar: float) -> float:
     return g / 1000.0
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def valve_inflow(u_eq: float, p: float, p_supply: float, gain_charge: float,
                  gain_discharge: float, gain_slope: float, shape: float = 0.0,
                  shape_phase: float = 0.0) -> float:
@@ -144,7 +144,7 @@ def weighted_plays(plays: np.ndarray, thresholds: np.ndarray, weights: np.ndarra
     return acc
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _rates(m: np.ndarray, x0: float, x1: float, x2: float, x3: float, u: float
            ) -> tuple[float, float, float, float]:
     """Time derivatives of (i, w, theta, l) under delayed command ``u`` [V]; ``m`` holds
