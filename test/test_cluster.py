@@ -47,63 +47,62 @@ def _build(log, truth, root, seed):
 
 
 def test_selfcheck_cases_run_on_the_cluster_and_resume(tmp_path, monkeypatch, scheduler):
-    """The self-check's machinery on a cluster: three cases (the model truths of seed 2: none,
-    a valve lag, a valve delay) spread over the workers, the first case interrupted, the run
-    resumed, then all three scored (results, confusion, recovery, intervals, report). The truths
+    """The self-check's machinery on a cluster: two cases (the model truths of seed 2: none and
+    a valve lag) spread over the workers, the first case interrupted, the run resumed, then both
+    scored (results, confusion, recovery, intervals, report). The truths
     are the candidates' own forms, so this checks the plumbing, not the detection: detection on
     truths of other forms is test_selfcheck's plant case; that the datasets carry no truth is
     test_selfcheck_datasets_are_the_default_campaign."""
-    monkeypatch.setitem(selfcheck.KINDS, "model", ("none", "valve_lag", "valve_delay"))
+    monkeypatch.setitem(selfcheck.KINDS, "model", ("none", "valve_lag"))
     log = tmp_path / "recorded.log"
     log.with_suffix(".stop").touch()
     build = functools.partial(_build, log)
     out = tmp_path / "out"
-    run = functools.partial(selfcheck.run_selfcheck, 3, 2, build, out, deviate=False,
+    run = functools.partial(selfcheck.run_selfcheck, 2, 2, build, out, deviate=False,
                             source="model", scheduler=scheduler)
-    with pytest.raises(selfcheck.SelfcheckError, match="1 of 3 cases failed.*case 0.*"
+    with pytest.raises(selfcheck.SelfcheckError, match="1 of 2 cases failed.*case 0.*"
                                                        "interrupted.*run the same command"):
         run(progress=lambda line: None)
-    assert sorted(log.read_text().split()) == ["case00", "case01", "case02"]
-    assert [p.parent.name for p in sorted(out.glob("cases/*/result.json"))] == ["case01", "case02"]
+    assert sorted(log.read_text().split()) == ["case00", "case01"]
+    assert [p.parent.name for p in sorted(out.glob("cases/*/result.json"))] == ["case01"]
     assert not (out / "selfcheck.json").exists()
 
     log.with_suffix(".stop").unlink()
     lines = []
     summary = run(progress=lines.append)
-    assert log.read_text().split()[3:] == ["case00"]  # only the first is computed
-    assert len(lines) == 2 and lines[0].startswith("resuming: 2 of 3 cases already done")
-    assert lines[-1].startswith("[3/3]") and "left" in lines[-1] and "none" in lines[-1]
-    assert summary["resumed"] == 2 and summary["ran_on"] == f"the Dask scheduler at {scheduler}"
-    assert [r["truth"] for r in summary["results"]] == ["none", "valve_lag", "valve_delay"]
-    assert [r["verdict"] for r in summary["results"]] == ["none", "valve_lag", "valve_delay"]
+    assert log.read_text().split()[2:] == ["case00"]  # only the first is computed
+    assert len(lines) == 2 and lines[0].startswith("resuming: 1 of 2 cases already done")
+    assert lines[-1].startswith("[2/2]") and "left" in lines[-1] and "none" in lines[-1]
+    assert summary["resumed"] == 1 and summary["ran_on"] == f"the Dask scheduler at {scheduler}"
+    assert [r["truth"] for r in summary["results"]] == ["none", "valve_lag"]
+    assert [r["verdict"] for r in summary["results"]] == ["none", "valve_lag"]
     assert summary["top1_accuracy"] == 1.0 and summary["none_correct"]
     assert all(r["shrinkage"] >= 0.9 for r in summary["results"][1:])
-    lag, delay = summary["recovery"]
+    (lag,) = summary["recovery"]
     assert lag["param"] == "corner_frequency" and lag["rel_error"] < 0.1
-    assert delay["param"] == "delay" and delay["rel_error"] < 0.1
     assert summary["confusion"]["valve_lag"]["valve_lag"] == 1
     by_truth = summary["accuracy_by_truth"]
-    assert [by_truth[t]["cases"] for t in ("none", "valve_lag", "valve_delay")] == [1, 1, 1]
+    assert [by_truth[t]["cases"] for t in ("none", "valve_lag")] == [1, 1]
     for a in [*by_truth.values(), *summary["accuracy_by_kind"].values()]:
         lo, hi = a["interval"]
         assert 0.0 <= lo <= a["accuracy"] <= hi <= 1.0 and hi - lo > 0.2  # few cases: wide
     q = summary["shrinkage_quantiles"]
     assert q["cases"] >= 1 and q["min"] <= q["median"] <= q["max"]
     md = (out / "selfcheck.md").read_text()
-    assert md.startswith("# jetpipe selfcheck: 3 cases") and "from the model" in md
+    assert md.startswith("# jetpipe selfcheck: 2 cases") and "from the model" in md
     assert "Wilson interval" in md and selfcheck.SHRINKAGE_PNG in md
     assert (out / selfcheck.SHRINKAGE_PNG).read_bytes()[:4] == b"\x89PNG"
-    assert json.loads((out / "selfcheck.json").read_text())["cases"] == 3
+    assert json.loads((out / "selfcheck.json").read_text())["cases"] == 2
     assert (out / "cases" / "case01" / "diagnosis.json").exists()
     assert "valve_lag" in (out / "cases" / "case01" / "truth.yaml").read_text()
     # Each case recorded once on a worker, the interrupted one again on resuming.
-    assert len(log.with_suffix(".index").read_text().splitlines()) == 3
+    assert len(log.with_suffix(".index").read_text().splitlines()) == 2
 
     # Another configuration in the same OUT is refused before anything runs.
     with pytest.raises(selfcheck.SelfcheckError, match="--seed 2 .*not.*--seed 3.*--restart"):
-        selfcheck.run_selfcheck(3, 3, build, out, deviate=False, source="model",
+        selfcheck.run_selfcheck(2, 3, build, out, deviate=False, source="model",
                                 scheduler=scheduler, progress=lambda line: None)
-    assert len(log.read_text().split()) == 4
+    assert len(log.read_text().split()) == 3
 
 
 def test_fleet_diagnoses_every_dataset_and_reports_the_bad_one(tmp_path, scheduler):
