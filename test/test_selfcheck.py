@@ -54,6 +54,28 @@ def test_plant_cases_cover_every_real_effect_pairs_and_parameters_only():
     assert isinstance(cushion.truth_model(), PlantSpec)
 
 
+def test_kinds_select_the_same_cases_as_the_whole_run_and_refuse_an_unknown_kind(tmp_path,
+                                                                                  capsys):
+    """--kinds runs a subset of the --cases: the same indices, sizes and seeds as in the whole
+    run (so the whole run resumes them); a kind the cases do not have is refused before any case
+    runs, naming the option and the kinds there are."""
+    cases = selfcheck.make_cases(40, seed=3)
+    some = selfcheck.select_kinds(cases, ["flow_lag", "parameters_only"])
+    assert [c.index for c in some] == [c.index for c in cases
+                                       if c.kind in ("flow_lag", "parameters_only")]
+    assert len(some) == 6 and some == [cases[c.index] for c in some]  # per 20: 2 and 1
+    assert selfcheck.select_kinds(cases, []) == cases
+    with pytest.raises(selfcheck.SelfcheckError, match="--kinds: flow_lags is not among.*"
+                                                       "flow_lag"):
+        selfcheck.select_kinds(cases, ["flow_lags"])
+    from jetpipe_ros.cli import main
+    assert main(["selfcheck", "--cases", "3", "--kinds", "flow_lag", "--out",
+                 str(tmp_path / "out")]) != 0
+    assert "--kinds: flow_lag is not among these 3 cases' kinds: parameters_only, " \
+        in capsys.readouterr().err
+    assert not (tmp_path / "out" / "cases").exists()
+
+
 def test_deviations_move_raw_parameters_as_the_knobs_they_amount_to():
     rng = np.random.default_rng(7)
     nominal = ModelParams()

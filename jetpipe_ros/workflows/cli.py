@@ -69,7 +69,7 @@ def _selfcheck(args: argparse.Namespace) -> int:
                             workers=args.jobs,
                             deviate=args.deviations, source=args.truth,
                             scheduler=args.scheduler, restart=args.restart,
-                            shape=args.flow_map_shape,
+                            shape=args.flow_map_shape, kinds=args.kinds,
                             progress=lambda line: print(line, flush=True))  # also into a file
     lo, hi = summary["top1_interval"]
     print(f"\n{summary['cases']} cases in {summary['seconds']:.0f} s: top-1 accuracy "
@@ -121,6 +121,11 @@ def add_command(subparsers) -> None:
                    help="Dask scheduler to run the cases on, e.g. tcp://host:8786 (default: "
                         "the DASK_SCHEDULER_ADDRESS environment variable, else a local "
                         "cluster)")
+    c.add_argument("--kinds", type=lambda text: [k for k in text.split(",") if k], default=[],
+                   metavar="KIND[,KIND...]",
+                   help="run and score only the cases of these kinds among the --cases (e.g. "
+                        "flow_lag,parameters_only; the same cases as in the whole run, which "
+                        "then resumes them); an unknown kind is refused with the kinds there are")
     c.add_argument("--restart", action="store_true",
                    help="discard the cases an earlier run left in OUT (by default a run with "
                         "the same --cases, --seed, --truth, --deviations resumes them, and "

@@ -42,7 +42,7 @@ import os
 import shutil
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -442,7 +442,8 @@ def run_selfcheck(n: int, seed: int,
                   out_dir: Path | None = None, workers: int = 2,
                   progress: Callable[[str], None] = print, deviate: bool = True,
                   source: str = "plant", scheduler: str | None = None,
-                  restart: bool = False, shape: bool = False) -> dict:
+                  restart: bool = False, shape: bool = False,
+                  kinds: Sequence[str] = ()) -> dict:
     """Run ``n`` cases; ``make_dataset(truth, root, seed)`` writes a noisy dataset to root.
 
     The cases run in parallel, one per task on the workers of a Dask cluster
@@ -453,9 +454,12 @@ def run_selfcheck(n: int, seed: int,
     ``source``, ``deviate``) computes only the cases left; another configuration there is
     refused unless ``restart``. A case that fails does not stop the others: they finish and are
     kept, then :class:`SelfcheckError` names the failures. With ``shape`` every bench's flow map
-    departs from Eq. 8 within the fit's error (:func:`make_cases`).
+    departs from Eq. 8 within the fit's error (:func:`make_cases`). With ``kinds`` only the
+    cases of those kinds (:attr:`Case.kind`) among the ``n`` run and are scored: the same cases,
+    sizes and seeds as in the whole run, so a later run of all ``n`` in the same ``out_dir``
+    computes only the rest.
     """
-    cases = make_cases(n, seed, deviate, source, shape)
+    cases = select_kinds(make_cases(n, seed, deviate, source, shape), kinds)
     cases_dir = out_dir / "cases" if out_dir is not None else None
     done: dict[int, Case] = {}
     if cases_dir is not None:
@@ -465,8 +469,9 @@ def run_selfcheck(n: int, seed: int,
         if isinstance(make_dataset, Logged):
             config.update(logger=make_dataset.logger, rate=make_dataset.rate)
         done = _configuration(cases_dir, config, restart)
+        done = {i: c for i, c in done.items() if i in {c.index for c in cases}}
         if done:
-            progress(f"resuming: {len(done)} of {n} cases already done in {cases_dir} "
+            progress(f"resuming: {len(done)} of {len(cases)} cases already done in {cases_dir} "
                      f"(skipped: {', '.join(str(i) for i in sorted(done))})")
     todo = [c for c in cases if c.index not in done]
     began = time.perf_counter()
@@ -474,10 +479,10 @@ def run_selfcheck(n: int, seed: int,
 
     def report(case: Case) -> None:
         done[case.index] = case
-        finished = len(done) - (n - len(todo))
+        finished = len(done) - (len(cases) - len(todo))
         elapsed = time.perf_counter() - began
         left = elapsed / finished * (len(todo) - finished - len(failures))
-        progress(f"[{len(done)}/{n}] {case.kind:42s} truth {case.truth:28s} -> "
+        progress(f"[{len(done)}/{len(cases)}] {case.kind:42s} truth {case.truth:28s} -> "
                  f"{case.verdict:28s} {'ok ' if case.correct else 'MISS'} "
                  f"{'recalibrated ' if case.calibrated else ''}"
                  f"shrinkage {100 * case.shrinkage:4.0f} %  ({case.seconds:.0f} s; "
@@ -502,10 +507,12 @@ def run_selfcheck(n: int, seed: int,
     if failures:
         kept = f"; the {len(done)} finished are kept in {cases_dir}: run the same command " \
                f"again to retry the rest" if cases_dir is not None else ""
-        raise SelfcheckError(f"{len(failures)} of {n} cases failed ({'; '.join(failures)})"
+        raise SelfcheckError(f"{len(failures)} of {len(cases)} cases failed ({'; '.join(failures)})"
                              f"{kept}")
     summary = summarise([done[c.index] for c in cases], time.perf_counter() - began)
-    summary["resumed"] = n - len(todo)
+    summary["resumed"] = len(cases) - len(todo)
+    if kinds:
+        summary["kinds"] = sorted({c.kind for c in cases})
     summary["flow_map_shape"] = shape
     if isinstance(make_dataset, Logged):
         summary["logged"] = make_dataset.describe()
@@ -516,6 +523,19 @@ def run_selfcheck(n: int, seed: int,
                      out_dir / "selfcheck.md": render(summary)})
         shrinkage_figure(summary, out_dir / SHRINKAGE_PNG)
     return summary
+
+
+def select_kinds(cases: list[Case], kinds: Sequence[str]) -> list[Case]:
+    """The cases of the given kinds (all for none); a kind none of the cases has is refused with
+    the kinds they have."""
+    if not kinds:
+        return cases
+    have = sorted({c.kind for c in cases})
+    unknown = [k for k in kinds if k not in have]
+    if unknown:
+        raise SelfcheckError(f"--kinds: {', '.join(unknown)} is not among these "
+                             f"{len(cases)} cases' kinds: {', '.join(have)}")
+    return [c for c in cases if c.kind in kinds]
 
 
 def _truth_yaml(truth: ModelParams | PlantSpec) -> str:
@@ -629,8 +649,10 @@ def render(summary: dict) -> str:
     logged = f", logged at {summary['logged']}" if summary.get("logged") else ""
     shape = ", every flow map of another shape than Eq. 8" if summary.get("flow_map_shape") \
         else ""
+    only = f", only the kinds {', '.join(summary['kinds'])}" if summary.get("kinds") else ""
     lines = [f"# jetpipe selfcheck: {summary['cases']} cases in {summary['seconds']:.0f} s, "
-             f"data from the {summary['source']}, {dev} parameter deviations{shape}{logged}",
+             f"data from the {summary['source']}, {dev} parameter deviations{shape}{logged}"
+             f"{only}",
              "",
              f"- top-1 accuracy: {100 * summary['top1_accuracy']:.0f} % "
              f"({100 * summary['top1_interval'][0]:.0f}-{100 * summary['top1_interval'][1]:.0f} "
