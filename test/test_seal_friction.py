@@ -293,12 +293,12 @@ def test_the_actuators_own_friction_tests_feed_the_friction_command(tmp_path, ca
         phase, direction = ("exit", "exit") if np.mean(prep.v[prep.train]) > 0 else \
             ("entry", "entry")
         at = (np.mean(prep.p1) * 1e-5, np.mean(prep.p2) * 1e-5)
-        coulomb = plane(truth[f"friction.{phase}.coulomb"], *at)
-        ratio = plane(truth[f"friction.{phase}.breakaway"], *at) / coulomb
+        coulomb = plane(np.asarray(truth[f"friction.{phase}.coulomb"]), *at)
+        ratio = plane(np.asarray(truth[f"friction.{phase}.breakaway"]), *at) / coulomb
         assert fit.values[f"{direction}.level"] == pytest.approx(abs(coulomb), rel=0.05), rec.name
         assert fit.values[f"{direction}.ratio"] == pytest.approx(ratio, rel=0.05)
         assert fit.values[f"{direction}.viscous"] == pytest.approx(
-            plane(truth[f"friction.{phase}.viscous"], *at), rel=0.05)
+            plane(np.asarray(truth[f"friction.{phase}.viscous"]), *at), rel=0.05)
 
 
 def test_a_dataset_without_friction_tests_is_one_line(tmp_path, capsys):
