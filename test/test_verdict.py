@@ -74,22 +74,28 @@ def test_noise_level_gap_with_no_significant_fit_is_none(rng):
     assert v.winner is None and "within what sensor noise explains" in v.reason
 
 
-def test_nothing_is_named_on_a_recalibration_that_leaves_no_gap_beyond_noise(rng):
-    # A 0.3 % gap (under the 0.5 % bar), an effect removing most of it with significance: on
-    # the nominal model it is the only explanation on offer and is named; on top of a
-    # recalibration that closed the gap it is not needed.
+def test_a_small_gap_an_effect_explains_beyond_noise_is_named_and_called_small(rng):
+    # A 0.3 % gap (under the 0.5 % bar), an effect removing most of it with significance: named
+    # (on the nominal or a recalibrated base alike), its reason saying the gap is small.
     base = windows(FLOOR + 9e-6, rng, jitter=1e-6)
     fits = [fit("valve_delay", 0.1, windows(FLOOR + 1e-6, rng, jitter=1e-6))]
     ranking = rank(fits, score(0.3), base, 1e-3)
     assert ranking[0].explains
-    assert decide(ranking, score(0.3), base, None).winner.fit.name == "valve_delay"
-    v = decide(ranking, score(0.3), base, None, recalibrated=True)
+    v = decide(ranking, score(0.3), base, None)
+    assert v.winner.fit.name == "valve_delay"
+    assert "a small gap (under the 0.5 % at which it shows" in v.reason
+    # The same gap, an effect whose removal is within the windows' noise: nothing named.
+    noisy = windows(FLOOR + 9e-6, rng, jitter=2e-5)
+    fits = [fit("valve_delay", 0.1, noisy - 8e-6 + 3e-5 * rng.standard_normal(20))]
+    ranking = rank(fits, score(0.3), noisy, 1e-3)
+    assert not ranking[0].explains
+    v = decide(ranking, score(0.3), noisy, None)
     assert v.winner is None and "within what sensor noise explains" in v.reason
-    # A recalibration that leaves a gap beyond noise: the effect on top of it is named.
+    # A gap beyond noise: named without the word.
     big = windows(FLOOR + 4e-4, rng)
     fits = [fit("valve_delay", 0.2, windows(FLOOR + 1e-5, rng))]
-    v = decide(rank(fits, score(2.0), big, 1e-3), score(2.0), big, None, recalibrated=True)
-    assert v.winner.fit.name == "valve_delay"
+    v = decide(rank(fits, score(2.0), big, 1e-3), score(2.0), big, None)
+    assert v.winner.fit.name == "valve_delay" and "small" not in v.reason
 
 
 def test_unexplained_gap_is_none_naming_the_reason(rng):

@@ -355,8 +355,7 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
             ranking = rank(on_cal, cal.holdout, cal.holdout_windows, dt)
         cross_check([cal_row, *ranking[:2], *alone_ranking[:2]], fitter, nominal, nom_all,
                     progress)
-        on_cal_verdict = decide(ranking, cal.holdout, cal.holdout_windows, floor,
-                                recalibrated=True)
+        on_cal_verdict = decide(ranking, cal.holdout, cal.holdout_windows, floor)
         alone_verdict = decide(alone_ranking, nom_hold, nom_windows, floor)
         given = effect_alone = None
         if on_cal_verdict.winner is not None:
