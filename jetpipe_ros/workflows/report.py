@@ -251,7 +251,7 @@ def summary(result: dict) -> str:
             words += (f"; recalibrating the nominal parameters as well removes "
                       f"{100 * cal['shrinkage_given_effect']:.0f} % of what the effect alone "
                       f"leaves")
-        lines.append(html.escape(words[0].upper() + words[1:]) + ".")
+        lines.append(html.escape(_capital(words)) + ".")
     if cal["significant"] or v["effect"] != "none":
         lines.append(f"Recalibration alone takes the held-out gap from {cal['gap_before']:.2f} "
                      f"% to {cal['gap_after']:.2f} %; the augmented model (what "
@@ -265,7 +265,7 @@ def summary(result: dict) -> str:
                        "for something it does not model.")
     free = nuisance_words(cal["nuisance"]) if cal.get("nuisance") else None
     if free:
-        lines.append(html.escape(free[0].upper() + free[1:]) + ".")
+        lines.append(html.escape(_capital(free)) + ".")
     if cal["traded_with_effect"]:
         lines.append("With the effect in the model, recalibration moved "
                      + ", ".join(f"<code>{k}</code> by {100 * (m - 1):+.0f} %"
@@ -302,11 +302,17 @@ def summary(result: dict) -> str:
         top = max(reg, key=lambda n: reg[n].get("nominal", {}).get("gap", 0.0))
         lines.append(f"By regime it is largest when <b>{top.replace('_', ' ')}</b> "
                      f"({reg[top]['nominal']['gap']:.2f} %).")
-    hidden = result["visibility"]["too_small_to_see"]
+    named = [h for h in result["visibility"]["too_small_to_see"]
+             if h.split(":")[0] in v["effects"]]
+    hidden = [h for h in result["visibility"]["too_small_to_see"] if h not in named]
     if hidden:
         lines.append("At their typical size these effects would not show in these "
                      "experiments (the data cannot tell): "
                      + ", ".join(f"<code>{h}</code>" for h in hidden) + ".")
+    if named:
+        lines.append("At its typical size the named effect (" + ", ".join(
+            f"<code>{h}</code>" for h in named) + ") would not show in these experiments "
+            "either: what it explains here is small (see above).")
     imitated = result["visibility"].get("not_ruled_out", [])
     if imitated:
         lines.append("<b>Not ruled out</b> by this answer: "
@@ -315,6 +321,13 @@ def summary(result: dict) -> str:
                      "(see <i>What these experiments can show</i>): a record with "
                      "another sensor or experiment is needed to tell.")
     return "<p>" + "</p><p>".join(lines) + "</p>"
+
+
+def _capital(words: str) -> str:
+    """``words`` with a capital first letter, unless they start with a name of the package's
+    vocabulary (``friction_dynamics:lugre``), which keeps its spelling."""
+    first = words.split(" ", 1)[0]
+    return words if "_" in first or ":" in first else words[0].upper() + words[1:]
 
 
 def _campaign_entry(sep: dict) -> str:
@@ -330,8 +343,7 @@ def equation_words(result: dict) -> str:
     """The equation-error finding in words (:func:`residuals.describe`)."""
     from jetpipe_ros.diagnosis.residuals import describe
 
-    words = describe(result["localization"]["equations"])
-    return words[0].upper() + words[1:]
+    return _capital(describe(result["localization"]["equations"]))
 
 
 def _table(rows: list[list], header: list[str]) -> str:

@@ -1,0 +1,30 @@
+"""The report's summary in words, from a stored diagnosis (no fitting): a measured seal's
+pre-sliding friction named on a gap under the 0.5 % bar (self-check seed 6733, case 6, the
+plant written apart from the model)."""
+
+import gzip
+import json
+from pathlib import Path
+
+from jetpipe_ros.workflows.report import summary
+from test_diagnosis import assert_schema
+
+STORED = Path(__file__).parent / "data" / "diagnoses" / "small_seal_friction.json.gz"
+
+
+def test_a_small_named_effect_is_called_small_and_not_also_invisible(tmp_path):
+    path = tmp_path / "diagnosis.json"
+    path.write_bytes(gzip.decompress(STORED.read_bytes()))
+    result = assert_schema(path)
+    assert result["verdict"]["effect"] == "friction_dynamics"
+    assert "friction_dynamics:lugre" in result["visibility"]["too_small_to_see"]
+    text = summary(result)
+    # The reason keeps the candidate's spelling (not "Friction_dynamics:lugre").
+    assert "<p>friction_dynamics:lugre removes 46% of the held-out gap" in \
+        text.replace("</p><p>", "<p>")
+    assert "a small gap (under the 0.5 % at which it shows" in text
+    # The named effect is not in the list of what the data cannot tell: its own sentence.
+    invisible = text.split("would not show in these experiments (the data cannot tell): ")[1]
+    assert invisible.split(".")[0] == "<code>moving_mass</code>"
+    assert "the named effect (<code>friction_dynamics:lugre</code>, " \
+           "<code>friction_dynamics:maxwell_slip</code>) would not show" in text
