@@ -22,7 +22,8 @@ def die_with_parent() -> None:
     Meant as ``preexec_fn`` of a child: a parent killed without the chance to stop its
     children (SIGKILL, or a test runner ended by SIGTERM, which runs no finalizer) would
     otherwise leave them running, still talking in their ROS domain. The kernel watches the
-    *thread* that started the child: start it from one that lives as long as the parent."""
+    *thread* that started the child: start it from one that lives as long as the parent, or
+    that waits for the child (then it ends after it)."""
     if not sys.platform.startswith("linux"):
         return
     try:

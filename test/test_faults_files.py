@@ -463,19 +463,28 @@ def test_merge_keys_are_not_duplicates():
 def test_children_die_with_their_parent(tmp_path):
     """A node started by a parent that is killed without stopping it (SIGKILL; a test runner
     ended by SIGTERM runs no finalizer) ends too: it would otherwise keep publishing in its
-    ROS domain. Control: the same child started without the request outlives its parent
-    (given a second: the kernel signals at once, the child ends in milliseconds)."""
+    ROS domain. Also when a worker thread starts it and waits for it (the gap monitor's
+    diagnosis): the kernel signals when the starting thread ends, which it does only after the
+    child. Control: the same child started without the request outlives its parent (given a
+    second: the kernel signals at once, the child ends in milliseconds)."""
 
     script = tmp_path / "parent.py"
     script.write_text(
-        "import subprocess, sys, time\n"
+        "import subprocess, sys, threading, time\n"
         "from jetpipe_ros.children import die_with_parent\n"
-        "kw = {'preexec_fn': die_with_parent} if sys.argv[1] == 'on' else {}\n"
-        "child = subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(60)'], **kw)\n"
-        "print(child.pid, flush=True)\n"
+        "kw = {'preexec_fn': die_with_parent} if sys.argv[1] != 'off' else {}\n"
+        "def start():\n"
+        "    child = subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(60)'],"
+        " **kw)\n"
+        "    print(child.pid, flush=True)\n"
+        "    child.wait()\n"
+        "if sys.argv[1] == 'thread':\n"
+        "    threading.Thread(target=start, daemon=True).start()\n"
+        "else:\n"
+        "    start()\n"
         "time.sleep(60)\n")
     alive = {}
-    for mode in ("on", "off"):
+    for mode in ("on", "thread", "off"):
         parent = subprocess.Popen([sys.executable, str(script), mode], stdout=subprocess.PIPE,
                                   text=True, cwd=Path(__file__).resolve().parents[1])
         child = int(parent.stdout.readline())
@@ -487,7 +496,7 @@ def test_children_die_with_their_parent(tmp_path):
         alive[mode] = _running(child)
         if alive[mode]:
             os.kill(child, signal.SIGKILL)
-    assert alive == {"on": False, "off": True}
+    assert alive == {"on": False, "thread": False, "off": True}
 
 
 def _running(pid: int) -> bool:

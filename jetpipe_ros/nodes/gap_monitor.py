@@ -46,6 +46,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import FluidPressure, JointState
 from std_srvs.srv import Trigger
 
+from jetpipe_ros.children import die_with_parent
 from jetpipe_ros.model import ModelParams, ParameterError, load_params
 from jetpipe_ros.model.params import ParamSpec
 from jetpipe_ros.nodes import interface, process
@@ -388,7 +389,10 @@ class GapMonitor(Node):
             argv += ["--params", self.opts["model_file"]]
         log = out.parent / "diagnose.log"
         with open(log, "w") as handle:
-            proc = subprocess.Popen(argv, stdout=handle, stderr=subprocess.STDOUT)
+            # Ends with this node even when it is killed (SIGKILL): the kernel signals the
+            # child when the thread that started it ends, and this thread waits for it.
+            proc = subprocess.Popen(argv, stdout=handle, stderr=subprocess.STDOUT,
+                                    preexec_fn=die_with_parent)
             self._diagnosis = proc
             try:  # below the monitor and the hardware's own processes
                 os.setpriority(os.PRIO_PROCESS, proc.pid, 10)
