@@ -13,7 +13,8 @@ late), or a lumped hose before each chamber (its volume, the air's inertance, it
 a length and a bore); the valve lag of first order (a corner)
 or second order (a natural frequency and a damping ratio) on the valve's output, or of second
 order on each chamber's mass flow after the flow map (a port or a line; overdamped, zeta > 1,
-it is a first-order lag up to the frequencies it passes); the thermal effect as a polytropic
+it is a first-order lag up to the frequencies it passes), or a port volume before each chamber
+behind a restriction (a filter or a fitting: its volume and its ISO 6358 sonic conductance); the thermal effect as a polytropic
 index or as gas temperatures exchanging heat with the walls; leaks as laminar conductances,
 compressible (choked) orifices, or a flow that grows as the pressure difference to a fitted
 power, each across the piston and to atmosphere; the supply constant, or a line (volume and
@@ -162,6 +163,28 @@ HOSE_KNOBS = (Knob("length", 0.0, 2.5, 0.0),
               Knob("bore", 0.002, 0.008, 0.005, log=True, extent=True))
 
 
+#: The ``valve_lag:port`` candidate's knobs. Port volume [m^3]: 0 (no port) to 100 cm^3, two
+#: thirds of a chamber at mid-stroke (a valve body's drilling and a fitting hold a few cm^3, a
+#: manifold block tens). Sonic conductance C [m^3/(s Pa)] of the restriction: 1e-9 to 1e-7
+#: (0.1-10 dm^3/(s bar), from a small filter to an open port), log-scaled; behind 40 cm^3 at
+#: 4.2 bar its time constant runs from 8 ms at rest (37 ms passing 1 g/s, its drop then 4.3 bar:
+#: the narrowest a valve of this flow works through) to 0.1 ms (a dead volume and nothing
+#: else at a 1 ms sample). C means nothing without a volume, so it is marked as spanning its
+#: extent: the candidate vanishes with the volume alone (as the hose's bore).
+PORT_KNOBS = (Knob("port_volume", 0.0, 1e-4, 0.0),
+              Knob("port_conductance", 1e-9, 1e-7, 1e-7, log=True, extent=True))
+
+#: Candidates that cannot be fitted together: each places a passage between the valve and each
+#: chamber, and the model holds one (:func:`jetpipe_ros.model.params.ModelParams` refuses both).
+EXCLUSIVE = (frozenset({"valve_lag:port", "valve_delay:line"}),
+             frozenset({"valve_lag:port", "valve_delay:hose"}))
+
+
+def combinable(a: str, b: str) -> bool:
+    """Whether candidates ``a`` and ``b`` (names) can be fitted together."""
+    return frozenset({a, b}) not in EXCLUSIVE
+
+
 def effect_of(name: str) -> str:
     """The effect (docs/effects.md) of a candidate name (``effect`` or ``effect:form``)."""
     return name.split(":", 1)[0]
@@ -182,6 +205,8 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     Candidate("valve_lag:flow", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),
                                  Knob("damping_ratio", 0.2, 2.0, 0.7)),
               {"corner_frequency": 30.0, "damping_ratio": 0.7}, {"form": "flow"}),
+    Candidate("valve_lag:port", PORT_KNOBS, {"port_volume": 4e-5, "port_conductance": 5e-9},
+              {"form": "port"}, carries=("dead_volume_1", "dead_volume_2")),
     Candidate("valve_hysteresis", (Knob("half_width", 0.0, 0.6, 0.0),
                                    Knob("spread", 0.0, 1.0, 0.0, tries=(1.0,), extent=True)),
               {"half_width": 0.25, "spread": 0.0}, {"elements": 8}),

@@ -105,7 +105,10 @@ _LINEAR_RATIO = 0.995
 
 
 @njit(cache=True, error_model="numpy")
-def _orifice_function(ratio: float) -> float:
+def orifice_function(ratio: float) -> float:
+    """The orifice law's flow function Psi [-] at the downstream/upstream pressure ``ratio``:
+    sqrt(2 gamma / (gamma - 1) (r^(2/gamma) - r^((gamma + 1)/gamma))), choked (0.685) at or below
+    the critical ratio 0.528."""
     if ratio <= _CRITICAL_RATIO:
         return _CHOKED
     g = GAMMA_AIR
@@ -124,9 +127,9 @@ def orifice_flow(area: float, p_a: float, p_b: float, rt: float) -> float:
     p_up = max(p_a, p_b)
     ratio = min(p_a, p_b) / p_up
     if ratio > _LINEAR_RATIO:
-        psi = _orifice_function(_LINEAR_RATIO) * (1.0 - ratio) / (1.0 - _LINEAR_RATIO)
+        psi = orifice_function(_LINEAR_RATIO) * (1.0 - ratio) / (1.0 - _LINEAR_RATIO)
     else:
-        psi = _orifice_function(ratio)
+        psi = orifice_function(ratio)
     return sign * area * p_up / math.sqrt(rt) * psi
 
 
