@@ -1,29 +1,28 @@
 """The candidate causes of a gap: each unmodelled effect of docs/effects.md with the parameters the
-diagnosis fits, their search ranges, and a typical size used to judge whether the experiments
-could show the effect at all.
+diagnosis fits, their search ranges, and a typical size used to judge whether the experiments could
+show the effect at all.
 
 Ranges are wider than the typical sizes of docs/effects.md so a real effect is not clipped, and
-each contains the value at which the effect vanishes (zero delay, hysteresis, leak, bias; n = 1;
-the nominal supply and mass; a corner, wall heat conductance, bristle stiffness or supply line
-conductance high enough, or a pre-sliding displacement short enough, to be invisible), so a fit
-to data without the effect can land on "no effect". The forms the physics admits are candidates
-of their own, judged on held-out data like the effects: the delay of the command, or of a line
-between valve and chambers (the flow arrives late, and the valve sees the chambers' pressures
-late), or a lumped hose before each chamber (its volume, the air's inertance, its wall friction:
-a length and a bore); the valve lag of first order (a corner)
-or second order (a natural frequency and a damping ratio) on the valve's output, or of second
-order on each chamber's mass flow after the flow map (a port or a line; overdamped, zeta > 1,
-it is a first-order lag up to the frequencies it passes), or a port volume before each chamber
-behind a restriction (a filter or a fitting: its volume and its ISO 6358 sonic conductance); the thermal effect as a polytropic
-index or as gas temperatures exchanging heat with the walls; leaks as laminar conductances,
-compressible (choked) orifices, or a flow that grows as the pressure difference to a fitted
-power, each across the piston and to atmosphere; the supply constant, or a line (volume and
-conductance) fed from a set pressure and drained by the flow the valve draws; dynamic friction
-as LuGre bristles or as Maxwell-slip elements (what real seals show, docs/friction.md), the
-elements' spread a knob of its extent. Where forms blend continuously a knob spans them: the
-hysteresis is eight play operators whose thresholds spread from one sharp loop (spread 0) to a
-rounded Prandtl-Ishlinskii loop (spread 1); the power-law leak's exponent runs from a turbulent,
-orifice-like leak (0.5) to a laminar one (1).
+each contains the value at which the effect vanishes (zero delay, hysteresis, leak, bias; n = 1; the
+nominal supply and mass; a corner, wall heat conductance, bristle stiffness or supply line
+conductance high enough, or a pre-sliding displacement short enough, to be invisible), so a fit to
+data without the effect can land on "no effect". The forms the physics admits are candidates of
+their own, judged on held-out data like the effects: the delay of the command, or of a line between
+valve and chambers (the flow arrives late, and the valve sees the chambers' pressures late), or a
+lumped hose before each chamber (its volume, the air's inertance, its wall friction: a length and a
+bore); the valve lag of first order (a corner) or second order (a natural frequency and a damping
+ratio) on the valve's output, or of second order on each chamber's mass flow after the flow map (a
+port or a line; overdamped, zeta > 1, it is a first-order lag up to the frequencies it passes), or a
+port volume before each chamber behind a restriction (a filter or a fitting: its volume and its ISO
+6358 sonic conductance); the thermal effect as a polytropic index or as gas temperatures exchanging
+heat with the walls; leaks as laminar conductances, compressible (choked) orifices, or a flow that
+grows as the pressure difference to a fitted power, each across the piston and to atmosphere; the
+supply constant, or a line (volume and conductance) fed from a set pressure and drained by the flow
+the valve draws; dynamic friction as LuGre bristles or as Maxwell-slip elements (what real seals
+show, docs/friction.md), the elements' spread a knob of its extent. Where forms blend continuously a
+knob spans them: the hysteresis is eight play operators whose thresholds spread from one sharp loop
+(spread 0) to a rounded Prandtl-Ishlinskii loop (spread 1); the power-law leak's exponent runs from
+a turbulent, orifice-like leak (0.5) to a laminar one (1).
 """
 
 from __future__ import annotations

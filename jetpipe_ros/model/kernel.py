@@ -62,11 +62,11 @@ from jetpipe_ros.model.friction import (LUGRE, MAX_ELEMENTS, MAXWELL_SLIP, lugre
 from jetpipe_ros.model.valve import U_EQ_MAX, U_EQ_MIN
 
 # State layout: scalars (with the flow lag's flows into chambers 1 and 2 [kg/s] and their rates
-# [kg/s^2], the line's write slot, the ports' pressures [Pa]: the chambers' without a port), then the hysteresis play operators, the Maxwell-slip
-# elements, the valve chain, and with the line its history: per sub-step a row of
-# LINE_COLUMNS (the pressures at the port [Pa], the flows leaving the valve [kg/s]); with the
-# hose instead, chamber 1's hose then chamber 2's (HOSE_STATES each: the nodes' pressures [Pa]
-# from the valve, then the segments' flows [kg/s]).
+# [kg/s^2], the line's write slot, the ports' pressures [Pa]: the chambers' without a port), then
+# the hysteresis play operators, the Maxwell-slip elements, the valve chain, and with the line its
+# history: per sub-step a row of LINE_COLUMNS (the pressures at the port [Pa], the flows leaving the
+# valve [kg/s]); with the hose instead, chamber 1's hose then chamber 2's (HOSE_STATES each: the
+# nodes' pressures [Pa] from the valve, then the segments' flows [kg/s]).
 Y, V, P1, P2, STUCK, Z, PS1, PS2, STEP, HEAD, UCMD, UEQ, FRICTION, T1, T2, SUPPLY, \
     FLOW1, RATE1, FLOW2, RATE2, LINE_HEAD, PORT1, PORT2 = range(23)
 PLAY = 23  #: first of the MAX_PLAY hysteresis play-operator outputs

@@ -1,4 +1,4 @@
-"""A port volume behind a restriction before each chamber: the ``port`` form of the valve_lag effect.
+"""A port volume behind a restriction before each chamber: the valve_lag effect's ``port`` form.
 
 Real benches put a volume between the valve and each chamber (the valve body's drilling, a
 manifold, a fitting) and a restriction between that volume and the chamber (a filter, a
