@@ -168,10 +168,13 @@ HOSE_KNOBS = (Knob("length", 0.0, 2.5, 0.0),
 #: (0.1-10 dm^3/(s bar), from a small filter to an open port), log-scaled; behind 40 cm^3 at
 #: 4.2 bar its time constant runs from 8 ms at rest (37 ms passing 1 g/s, its drop then 4.3 bar:
 #: the narrowest a valve of this flow works through) to 0.1 ms (a dead volume and nothing
-#: else at a 1 ms sample). C means nothing without a volume, so it is marked as spanning its
-#: extent: the candidate vanishes with the volume alone (as the hose's bore).
+#: else at a 1 ms sample). Subsonic index m: 0.5 (an orifice, a fitting) to 1 (a porous
+#: element: the drop linear in the flow), its whole extent. C and m mean nothing without a
+#: volume, so they are marked as spanning their extent: the candidate vanishes with the volume
+#: alone (as the hose's bore).
 PORT_KNOBS = (Knob("port_volume", 0.0, 1e-4, 0.0),
-              Knob("port_conductance", 1e-9, 1e-7, 1e-7, log=True, extent=True))
+              Knob("port_conductance", 1e-9, 1e-7, 1e-7, log=True, extent=True),
+              Knob("port_index", 0.5, 1.0, 0.5, extent=True))
 
 #: Candidates that cannot be fitted together: each places a passage between the valve and each
 #: chamber, and the model holds one (:func:`jetpipe_ros.model.params.ModelParams` refuses both).
@@ -204,7 +207,8 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     Candidate("valve_lag:flow", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),
                                  Knob("damping_ratio", 0.2, 2.0, 0.7)),
               {"corner_frequency": 30.0, "damping_ratio": 0.7}, {"form": "flow"}),
-    Candidate("valve_lag:port", PORT_KNOBS, {"port_volume": 4e-5, "port_conductance": 5e-9},
+    Candidate("valve_lag:port", PORT_KNOBS,
+              {"port_volume": 4e-5, "port_conductance": 5e-9, "port_index": 0.5},
               {"form": "port"}, carries=("dead_volume_1", "dead_volume_2")),
     Candidate("valve_hysteresis", (Knob("half_width", 0.0, 0.6, 0.0),
                                    Knob("spread", 0.0, 1.0, 0.0, tries=(1.0,), extent=True)),

@@ -102,6 +102,7 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
         port_rate=GAMMA_AIR * rt / port_volume if port_volume > 0.0 else 0.0,
         port_area=effective_area(p["effects.valve_lag.port_conductance"],
                                  p["chamber.gas_constant"]) if port_volume > 0.0 else 0.0,
+        port_index=p["effects.valve_lag.port_index"],
         leak_cross=p["effects.leakage.cross_coefficient"] if laminar else 0.0,
         leak_atm=p["effects.leakage.atmosphere_coefficient"] if laminar else 0.0,
         orifice_cross=p["effects.leakage.cross_area"] if orifice else 0.0,

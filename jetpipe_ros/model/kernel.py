@@ -117,6 +117,7 @@ class Constants(NamedTuple):
     hose_turbulent: float  #: a segment's turbulent friction K_turb [Pa^2 s^0.75/kg^0.75]
     port_rate: float  #: a port's pressure rate per net inflow gamma r T / V_p [Pa/kg]; 0 = off
     port_area: float  #: effective area of the restriction after each port [m^2] (:mod:`port`)
+    port_index: float  #: subsonic index m of that restriction [-]
     leak_cross: float  #: conductance chamber 1 -> 2 [kg/(s Pa)]
     leak_atm: float  #: conductance of each chamber to atmosphere [kg/(s Pa)]
     orifice_cross: float  #: orifice leak area chamber 1 -> 2 [m^2]
@@ -360,7 +361,7 @@ def _chamber_response(leak_cross: float, leak_atm: float, orifice_cross: float,
 @njit(cache=True, error_model="numpy", inline="always")
 def _port_substep(coef: np.ndarray, u: float, p_s: float, gain_charge: float,
                   gain_discharge: float, p_p: float, p_c: float, rate_c: float, gain_c: float,
-                  port_rate: float, area: float, rt: float, h: float
+                  port_rate: float, area: float, index: float, rt: float, h: float
                   ) -> tuple[float, float, float, float]:
     """A port and its chamber over a sub-step ``h`` [s] (:func:`port.port_step`), the map at
     ``u`` [V] reading the port's pressure ``p_p`` [Pa] (its slope by a finite difference).
@@ -369,7 +370,8 @@ def _port_substep(coef: np.ndarray, u: float, p_s: float, gain_charge: float,
     q = chamber_inflow(coef, u, p_p, p_s, gain_charge, gain_discharge)
     slope = (chamber_inflow(coef, u, p_p + HOSE_SLOPE_STEP, p_s, gain_charge, gain_discharge)
              - q) / HOSE_SLOPE_STEP
-    p_p, p_c, into, sent = port_step(p_p, p_c, q, slope, rate_c, gain_c, port_rate, area, rt, h)
+    p_p, p_c, into, sent = port_step(p_p, p_c, q, slope, rate_c, gain_c, port_rate, area, index,
+                                     rt, h)
     return max(p_p, MIN_PRESSURE), p_c, into, sent
 
 
@@ -497,7 +499,7 @@ def chamber_rates(c: Constants, y: np.ndarray, v: np.ndarray, p1: np.ndarray, p2
                 for i, (sign, p) in enumerate(((1.0, p1[k]), (-1.0, p2[k]))):
                     port[i], _, m, d = _port_substep(
                         c.flow_coef, sign * u_eq[k], p_s, c.gain_charge, c.gain_discharge,
-                        port[i], p, 0.0, 0.0, c.port_rate, c.port_area, c.rt, h)
+                        port[i], p, 0.0, 0.0, c.port_rate, c.port_area, c.port_index, c.rt, h)
                     if i == 0:
                         q1 += m / c.substeps
                     else:
@@ -651,10 +653,10 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
                         t2)
                 pp1, p1_new, m1, d1 = _port_substep(
                     coef, u_eq[s], p_s, c.gain_charge, c.gain_discharge, pp1, p1, rate1, gain1,
-                    c.port_rate, c.port_area, c.rt, h)
+                    c.port_rate, c.port_area, c.port_index, c.rt, h)
                 pp2, p2_new, m2, d2 = _port_substep(
                     coef, -u_eq[s], p_s, c.gain_charge, c.gain_discharge, pp2, p2, rate2, gain2,
-                    c.port_rate, c.port_area, c.rt, h)
+                    c.port_rate, c.port_area, c.port_index, c.rt, h)
                 if pressurise:
                     if c.heat_transfer > 0.0:
                         _, _, dt1, dt2 = _chamber_rates(

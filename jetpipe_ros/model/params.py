@@ -211,6 +211,9 @@ _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
         _p("port_conductance", 3e-9, "Sonic conductance C of the restriction between the port "
            "and its chamber (form port; ISO 6358, choked flow C rho_0 p_up, critical ratio "
            "0.528): 1e-8 m^3/(s Pa) = 1 dm^3/(s bar)", "m^3/(s Pa)", 1e-11, 1e-5),
+        _p("port_index", 0.5, "Subsonic index m of that restriction (form port; ISO "
+           "6358-1:2013): 0.5 an orifice, up to 1 a porous element whose drop is linear in "
+           "the flow near equal pressures", "", 0.5, 1.0),
     ],
     "valve_hysteresis": [
         _p("half_width", 0.25, "Hysteresis loop half-width (mean play threshold)", "V",
