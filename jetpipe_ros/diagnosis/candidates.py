@@ -171,12 +171,10 @@ HOSE_KNOBS = (Knob("length", 0.0, 2.5, 0.0),
 #: else at a 1 ms sample). Subsonic index m: 0.5 (an orifice, a fitting) to 1 (a porous
 #: element: the drop linear in the flow), its whole extent. C and m mean nothing without a
 #: volume, so they are marked as spanning their extent: the candidate vanishes with the volume
-#: alone (as the hose's bore), and their "off" values are where its fits start: C at the
-#: typical 5e-9 (at the widest C the volume's grid sees a dead volume and nothing of the
-#: restriction), m at 0.5 and, as a knob that selects a form, at 1 too.
+#: alone (as the hose's bore).
 PORT_KNOBS = (Knob("port_volume", 0.0, 1e-4, 0.0),
-              Knob("port_conductance", 1e-9, 1e-7, 5e-9, log=True, extent=True),
-              Knob("port_index", 0.5, 1.0, 0.5, tries=(1.0,), extent=True))
+              Knob("port_conductance", 1e-9, 1e-7, 1e-7, log=True, extent=True),
+              Knob("port_index", 0.5, 1.0, 0.5, extent=True))
 
 #: Candidates that cannot be fitted together: each places a passage between the valve and each
 #: chamber, and the model holds one (:func:`jetpipe_ros.model.params.ModelParams` refuses both).
