@@ -37,7 +37,8 @@ discharges into the chamber at p_c [Pa] through the restriction:
 
 Integration (:func:`port_step`, one sub-step): the port and its chamber together by the
 linearly implicit theta rule, the map's slope and the restriction's slopes frozen over the
-step, theta = max(1/2, 1 - 1/x), x = h (gamma r T / V_p (G + K_v) + g_c G) the sum of the two
+step (the slope in p_c by a finite difference, that in p_p from it by Euler's identity for a
+law homogeneous of degree 1 in the two pressures), theta = max(1/2, 1 - 1/x), x = h (gamma r T / V_p (G + K_v) + g_c G) the sum of the two
 modes' rates times the step (g_c the chamber's pressure rate per inflow): the trapezoid
 (second order, no numerical damping) while x <= 2, i.e. down to a port of an eighth of a sample
 at 4 sub-steps; above, theta rises continuously so that no mode changes sign over a step (a
