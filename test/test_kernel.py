@@ -35,6 +35,11 @@ EFFECTS = {
                                                    "effects.supply_pressure.form": "line"},
     "short hose": {"effects.valve_delay.enabled": True, "effects.valve_delay.form": "hose",
                    "effects.valve_delay.length": 0.05},
+    "port, command delay, heat transfer, supply line": {
+        "effects.valve_lag.enabled": True, "effects.valve_lag.form": "port",
+        "effects.valve_delay.enabled": True, "effects.thermal.enabled": True,
+        "effects.thermal.form": "heat_transfer", "effects.supply_pressure.enabled": True,
+        "effects.supply_pressure.form": "line"},
 }
 
 

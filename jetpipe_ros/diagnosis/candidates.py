@@ -1,28 +1,28 @@
 """The candidate causes of a gap: each unmodelled effect of docs/effects.md with the parameters the
-diagnosis fits, their search ranges, and a typical size used to judge whether the experiments
-could show the effect at all.
+diagnosis fits, their search ranges, and a typical size used to judge whether the experiments could
+show the effect at all.
 
 Ranges are wider than the typical sizes of docs/effects.md so a real effect is not clipped, and
-each contains the value at which the effect vanishes (zero delay, hysteresis, leak, bias; n = 1;
-the nominal supply and mass; a corner, wall heat conductance, bristle stiffness or supply line
-conductance high enough, or a pre-sliding displacement short enough, to be invisible), so a fit
-to data without the effect can land on "no effect". The forms the physics admits are candidates
-of their own, judged on held-out data like the effects: the delay of the command, or of a line
-between valve and chambers (the flow arrives late, and the valve sees the chambers' pressures
-late), or a lumped hose before each chamber (its volume, the air's inertance, its wall friction:
-a length and a bore); the valve lag of first order (a corner)
-or second order (a natural frequency and a damping ratio) on the valve's output, or of second
-order on each chamber's mass flow after the flow map (a port or a line; overdamped, zeta > 1,
-it is a first-order lag up to the frequencies it passes); the thermal effect as a polytropic
-index or as gas temperatures exchanging heat with the walls; leaks as laminar conductances,
-compressible (choked) orifices, or a flow that grows as the pressure difference to a fitted
-power, each across the piston and to atmosphere; the supply constant, or a line (volume and
-conductance) fed from a set pressure and drained by the flow the valve draws; dynamic friction
-as LuGre bristles or as Maxwell-slip elements (what real seals show, docs/friction.md), the
-elements' spread a knob of its extent. Where forms blend continuously a knob spans them: the
-hysteresis is eight play operators whose thresholds spread from one sharp loop (spread 0) to a
-rounded Prandtl-Ishlinskii loop (spread 1); the power-law leak's exponent runs from a turbulent,
-orifice-like leak (0.5) to a laminar one (1).
+each contains the value at which the effect vanishes (zero delay, hysteresis, leak, bias; n = 1; the
+nominal supply and mass; a corner, wall heat conductance, bristle stiffness or supply line
+conductance high enough, or a pre-sliding displacement short enough, to be invisible), so a fit to
+data without the effect can land on "no effect". The forms the physics admits are candidates of
+their own, judged on held-out data like the effects: the delay of the command, or of a line between
+valve and chambers (the flow arrives late, and the valve sees the chambers' pressures late), or a
+lumped hose before each chamber (its volume, the air's inertance, its wall friction: a length and a
+bore); the valve lag of first order (a corner) or second order (a natural frequency and a damping
+ratio) on the valve's output, or of second order on each chamber's mass flow after the flow map (a
+port or a line; overdamped, zeta > 1, it is a first-order lag up to the frequencies it passes), or a
+port volume before each chamber behind a restriction (a filter or a fitting: its volume and its ISO
+6358 sonic conductance); the thermal effect as a polytropic index or as gas temperatures exchanging
+heat with the walls; leaks as laminar conductances, compressible (choked) orifices, or a flow that
+grows as the pressure difference to a fitted power, each across the piston and to atmosphere; the
+supply constant, or a line (volume and conductance) fed from a set pressure and drained by the flow
+the valve draws; dynamic friction as LuGre bristles or as Maxwell-slip elements (what real seals
+show, docs/friction.md), the elements' spread a knob of its extent. Where forms blend continuously a
+knob spans them: the hysteresis is eight play operators whose thresholds spread from one sharp loop
+(spread 0) to a rounded Prandtl-Ishlinskii loop (spread 1); the power-law leak's exponent runs from
+a turbulent, orifice-like leak (0.5) to a laminar one (1).
 """
 
 from __future__ import annotations
@@ -162,6 +162,31 @@ HOSE_KNOBS = (Knob("length", 0.0, 2.5, 0.0),
               Knob("bore", 0.002, 0.008, 0.005, log=True, extent=True))
 
 
+#: The ``valve_lag:port`` candidate's knobs. Port volume [m^3]: 0 (no port) to 100 cm^3, two
+#: thirds of a chamber at mid-stroke (a valve body's drilling and a fitting hold a few cm^3, a
+#: manifold block tens). Sonic conductance C [m^3/(s Pa)] of the restriction: 1e-9 to 1e-7
+#: (0.1-10 dm^3/(s bar), from a small filter to an open port), log-scaled; behind 40 cm^3 at
+#: 4.2 bar its time constant runs from 8 ms at rest (37 ms passing 1 g/s, its drop then 4.3 bar:
+#: the narrowest a valve of this flow works through) to 0.1 ms (a dead volume and nothing
+#: else at a 1 ms sample). Subsonic index m: 0.5 (an orifice, a fitting) to 1 (a porous
+#: element: the drop linear in the flow), its whole extent. C and m mean nothing without a
+#: volume, so they are marked as spanning their extent: the candidate vanishes with the volume
+#: alone (as the hose's bore).
+PORT_KNOBS = (Knob("port_volume", 0.0, 1e-4, 0.0),
+              Knob("port_conductance", 1e-9, 1e-7, 1e-7, log=True, extent=True),
+              Knob("port_index", 0.5, 1.0, 0.5, extent=True))
+
+#: Candidates that cannot be fitted together: each places a passage between the valve and each
+#: chamber, and the model holds one (:func:`jetpipe_ros.model.params.ModelParams` refuses both).
+EXCLUSIVE = (frozenset({"valve_lag:port", "valve_delay:line"}),
+             frozenset({"valve_lag:port", "valve_delay:hose"}))
+
+
+def combinable(a: str, b: str) -> bool:
+    """Whether candidates ``a`` and ``b`` (names) can be fitted together."""
+    return frozenset({a, b}) not in EXCLUSIVE
+
+
 def effect_of(name: str) -> str:
     """The effect (docs/effects.md) of a candidate name (``effect`` or ``effect:form``)."""
     return name.split(":", 1)[0]
@@ -182,6 +207,9 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     Candidate("valve_lag:flow", (Knob("corner_frequency", 3.0, 300.0, 300.0, log=True),
                                  Knob("damping_ratio", 0.2, 2.0, 0.7)),
               {"corner_frequency": 30.0, "damping_ratio": 0.7}, {"form": "flow"}),
+    Candidate("valve_lag:port", PORT_KNOBS,
+              {"port_volume": 4e-5, "port_conductance": 5e-9, "port_index": 0.5},
+              {"form": "port"}, carries=("dead_volume_1", "dead_volume_2")),
     Candidate("valve_hysteresis", (Knob("half_width", 0.0, 0.6, 0.0),
                                    Knob("spread", 0.0, 1.0, 0.0, tries=(1.0,), extent=True)),
               {"half_width": 0.25, "spread": 0.0}, {"elements": 8}),

@@ -29,7 +29,7 @@ from jetpipe_ros.dataset import Dataset
 from jetpipe_ros.diagnosis import calibration
 from jetpipe_ros.diagnosis.alignment import Alignment, align
 from jetpipe_ros.diagnosis.calibration import CALIBRATION
-from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate, effect_of
+from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate, combinable, effect_of
 from jetpipe_ros.diagnosis.collinearity import imitated_effects, imitations
 from jetpipe_ros.diagnosis.data import Prepared, prepare, swapped
 from jetpipe_ros.diagnosis.fit import BUDGET, Fit, stacked, uncertainty, with_nuisance
@@ -210,6 +210,7 @@ def _grow(fitter: Fitter, nominal: ModelParams, base: Fit, others: Sequence[str]
     pool, so the delay never got its own round with the leak)."""
     progress(f"{base.name} leaves {base.holdout.gap:.2f} % of the gap: fitting each other "
              f"candidate on top of it")
+    others = [e for e in others if all(combinable(e, g) for g in base.effects)]
     added = [stacked(base, f) for f in fitter.run([Job(base.params, (e,)) for e in others],
                                                  [f"{e} on top" for e in others])]
     best_form: dict[str, Fit] = {}

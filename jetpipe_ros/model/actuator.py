@@ -16,10 +16,11 @@ from typing import Any
 import numpy as np
 
 from jetpipe_ros.model import kernel
-from jetpipe_ros.model.flow import P_SUPPLY_NOMINAL, flow_lag_matrix
+from jetpipe_ros.model.flow import GAMMA_AIR, P_SUPPLY_NOMINAL, flow_lag_matrix
 from jetpipe_ros.model.friction import FRICTION_FORMS, MAXWELL_SLIP, STATIC, element_slips
 from jetpipe_ros.model.hose import hose_constants, inner_steps
 from jetpipe_ros.model.params import ModelParams
+from jetpipe_ros.model.port import effective_area
 from jetpipe_ros.model.valve import sample_valve
 
 
@@ -57,8 +58,11 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
     second_order = lag_hz and lag_form == "second_order"
     flow_lag = (flow_lag_matrix(lag_hz, p["effects.valve_lag.damping_ratio"], dt / substeps)
                 if lag_hz and lag_form == "flow" else np.zeros((0, 3)))
+    port_volume = (effect("valve_lag", "port_volume", 0.0) if lag_form == "port" else 0.0)
     valve = sample_valve(p, dt, substeps,
-                         extra_lag_hz=lag_hz if lag_hz and lag_form != "flow" else None,
+                         extra_lag_hz=lag_hz if lag_hz and lag_form in ("first_order",
+                                                                        "second_order")
+                         else None,
                          extra_delay=effect("valve_delay", "delay", 0.0)
                          if delay_form == "command" else 0.0,
                          extra_lag_damping=p["effects.valve_lag.damping_ratio"]
@@ -95,6 +99,10 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
         flow_lag=flow_lag, line_delay=line_delay * substeps / dt,
         hose_steps=inner_steps(hose_length, rt, dt / substeps) if hose_length > 0.0 else 0,
         hose_rate=hose[0], hose_accel=hose[1], hose_laminar=hose[2], hose_turbulent=hose[3],
+        port_rate=GAMMA_AIR * rt / port_volume if port_volume > 0.0 else 0.0,
+        port_area=effective_area(p["effects.valve_lag.port_conductance"],
+                                 p["chamber.gas_constant"]) if port_volume > 0.0 else 0.0,
+        port_index=p["effects.valve_lag.port_index"],
         leak_cross=p["effects.leakage.cross_coefficient"] if laminar else 0.0,
         leak_atm=p["effects.leakage.atmosphere_coefficient"] if laminar else 0.0,
         orifice_cross=p["effects.leakage.cross_area"] if orifice else 0.0,
@@ -176,8 +184,8 @@ class Actuator:
         x = np.zeros(kernel.state_size(c))
         p = self.params
         x[kernel.Y] = min(max(p["mechanics.initial_position"], -c.y_max), c.y_max)
-        x[kernel.P1] = x[kernel.PS1] = p["chamber.initial_pressure_1"]
-        x[kernel.P2] = x[kernel.PS2] = p["chamber.initial_pressure_2"]
+        x[kernel.P1] = x[kernel.PS1] = x[kernel.PORT1] = p["chamber.initial_pressure_1"]
+        x[kernel.P2] = x[kernel.PS2] = x[kernel.PORT2] = p["chamber.initial_pressure_2"]
         kernel.fill_line(c, x)
         x[kernel.T1] = x[kernel.T2] = p["chamber.temperature"]
         x[kernel.SUPPLY] = c.p_supply

@@ -96,18 +96,22 @@ def chamber_inflow(coef: np.ndarray, u: float, p: float, p_supply: float,
 #: Heat capacity ratio of air.
 GAMMA_AIR = 1.4
 _CRITICAL_RATIO = (2.0 / (GAMMA_AIR + 1.0)) ** (GAMMA_AIR / (GAMMA_AIR - 1.0))  # 0.528
-_CHOKED = math.sqrt(GAMMA_AIR * (2.0 / (GAMMA_AIR + 1.0))
+#: The flow function choked (at and below the critical ratio), Psi* [-].
+CHOKED = math.sqrt(GAMMA_AIR * (2.0 / (GAMMA_AIR + 1.0))
                     ** ((GAMMA_AIR + 1.0) / (GAMMA_AIR - 1.0)))  # 0.685
 #: Above this downstream/upstream ratio the orifice law is linearised in the pressure
 #: difference: the exact law's infinite slope at equal pressures would make explicit
 #: integration chatter, and the flow there is negligible.
-_LINEAR_RATIO = 0.995
+LINEAR_RATIO = 0.995
 
 
 @njit(cache=True, error_model="numpy")
-def _orifice_function(ratio: float) -> float:
+def orifice_function(ratio: float) -> float:
+    """The orifice law's flow function Psi [-] at the downstream/upstream pressure ``ratio``:
+    sqrt(2 gamma / (gamma - 1) (r^(2/gamma) - r^((gamma + 1)/gamma))), choked (0.685) at or below
+    the critical ratio 0.528."""
     if ratio <= _CRITICAL_RATIO:
-        return _CHOKED
+        return CHOKED
     g = GAMMA_AIR
     return math.sqrt(2.0 * g / (g - 1.0) * (ratio ** (2.0 / g) - ratio ** ((g + 1.0) / g)))
 
@@ -123,10 +127,10 @@ def orifice_flow(area: float, p_a: float, p_b: float, rt: float) -> float:
     sign = 1.0 if p_a > p_b else -1.0
     p_up = max(p_a, p_b)
     ratio = min(p_a, p_b) / p_up
-    if ratio > _LINEAR_RATIO:
-        psi = _orifice_function(_LINEAR_RATIO) * (1.0 - ratio) / (1.0 - _LINEAR_RATIO)
+    if ratio > LINEAR_RATIO:
+        psi = orifice_function(LINEAR_RATIO) * (1.0 - ratio) / (1.0 - LINEAR_RATIO)
     else:
-        psi = _orifice_function(ratio)
+        psi = orifice_function(ratio)
     return sign * area * p_up / math.sqrt(rt) * psi
 
 

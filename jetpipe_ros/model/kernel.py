@@ -21,7 +21,9 @@ of length h:
    delay, so the delay is continuous); with its ``hose`` form a lumped hose between valve and
    each chamber (:mod:`~jetpipe_ros.model.hose`): the map reads the pressure at the hose's valve
    end, and the hose's nodes, flows and the chamber's pressure advance together, implicitly,
-   in inner steps;
+   in inner steps; with the valve lag's ``port`` form a port volume before each chamber behind
+   a restriction (:mod:`~jetpipe_ros.model.port`): the map reads the port's pressure, and the
+   port and its chamber advance together, implicitly;
 4. the piston velocity advances with the viscous friction implicit (F_v/M reaches ~4000 1/s),
    and Eq. 15's stick condition is checked whenever the velocity reaches or crosses zero, so
    stick-slip cannot chatter; with the friction_dynamics effect a LuGre bristle state or
@@ -53,20 +55,21 @@ from jetpipe_ros.model.chamber import (chamber_volumes, pressure_rates,
 from jetpipe_ros.model.flow import (GAMMA_AIR, P_ATM, chamber_inflow, flow_lag_step,
                                     orifice_flow, power_leak)
 from jetpipe_ros.model.hose import HOSE_STATES, hose_step
+from jetpipe_ros.model.port import port_step
 from jetpipe_ros.model.friction import (LUGRE, MAX_ELEMENTS, MAXWELL_SLIP, lugre_step,
                                         maxwell_slip_force, maxwell_slip_step, scaled_parameters,
                                         sliding_levels, static_friction, stribeck_force)
 from jetpipe_ros.model.valve import U_EQ_MAX, U_EQ_MIN
 
 # State layout: scalars (with the flow lag's flows into chambers 1 and 2 [kg/s] and their rates
-# [kg/s^2], the line's write slot), then the hysteresis play operators, the Maxwell-slip
-# elements, the valve chain, and with the line its history: per sub-step a row of
-# LINE_COLUMNS (the pressures at the port [Pa], the flows leaving the valve [kg/s]); with the
-# hose instead, chamber 1's hose then chamber 2's (HOSE_STATES each: the nodes' pressures [Pa]
-# from the valve, then the segments' flows [kg/s]).
+# [kg/s^2], the line's write slot, the ports' pressures [Pa]: the chambers' without a port), then
+# the hysteresis play operators, the Maxwell-slip elements, the valve chain, and with the line its
+# history: per sub-step a row of LINE_COLUMNS (the pressures at the port [Pa], the flows leaving the
+# valve [kg/s]); with the hose instead, chamber 1's hose then chamber 2's (HOSE_STATES each: the
+# nodes' pressures [Pa] from the valve, then the segments' flows [kg/s]).
 Y, V, P1, P2, STUCK, Z, PS1, PS2, STEP, HEAD, UCMD, UEQ, FRICTION, T1, T2, SUPPLY, \
-    FLOW1, RATE1, FLOW2, RATE2, LINE_HEAD = range(21)
-PLAY = 21  #: first of the MAX_PLAY hysteresis play-operator outputs
+    FLOW1, RATE1, FLOW2, RATE2, LINE_HEAD, PORT1, PORT2 = range(23)
+PLAY = 23  #: first of the MAX_PLAY hysteresis play-operator outputs
 MAX_PLAY = 8
 ELEMENT = PLAY + MAX_PLAY  #: first of the MAX_ELEMENTS Maxwell-slip normalised deflections
 VALVE = ELEMENT + MAX_ELEMENTS  #: first of the valve chain's states
@@ -112,6 +115,9 @@ class Constants(NamedTuple):
     hose_accel: float  #: a hose segment's A / (kappa l) [1/m]
     hose_laminar: float  #: a segment's laminar friction K_lam [Pa^2 s/kg] (:mod:`hose`)
     hose_turbulent: float  #: a segment's turbulent friction K_turb [Pa^2 s^0.75/kg^0.75]
+    port_rate: float  #: a port's pressure rate per net inflow gamma r T / V_p [Pa/kg]; 0 = off
+    port_area: float  #: effective area of the restriction after each port [m^2] (:mod:`port`)
+    port_index: float  #: subsonic index m of that restriction [-]
     leak_cross: float  #: conductance chamber 1 -> 2 [kg/(s Pa)]
     leak_atm: float  #: conductance of each chamber to atmosphere [kg/(s Pa)]
     orifice_cross: float  #: orifice leak area chamber 1 -> 2 [m^2]
@@ -329,6 +335,47 @@ HOSE_PROBE = 1e-3
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _chamber_response(leak_cross: float, leak_atm: float, orifice_cross: float,
+                      orifice_atm: float, power_cross: float, power_atm: float, exponent: float,
+                      r_gas: float, t_wall: float, rt: float, area: float, v01: float,
+                      v02: float, polytropic: float, heat_transfer: float, y: float, v: float,
+                      p1: float, p2: float, t1: float, t2: float
+                      ) -> tuple[float, float, float, float]:
+    """What each chamber's pressure does [Pa/s] without the flow a hose or a port delivers, and
+    per unit of that flow [Pa/kg] (:func:`_chamber_rates`' arguments)."""
+    rate1, rate2, _, _ = _chamber_rates(
+        0.0, 0.0, leak_cross, leak_atm, orifice_cross, orifice_atm, power_cross, power_atm,
+        exponent, r_gas, t_wall, rt, area, v01, v02, polytropic, heat_transfer, y, v, p1, p2,
+        t1, t2)
+    if heat_transfer > 0.0:
+        gain1, gain2, _, _ = _chamber_rates(
+            HOSE_PROBE, HOSE_PROBE, leak_cross, leak_atm, orifice_cross, orifice_atm,
+            power_cross, power_atm, exponent, r_gas, t_wall, rt, area, v01, v02, polytropic,
+            heat_transfer, y, v, p1, p2, t1, t2)
+        return rate1, rate2, (gain1 - rate1) / HOSE_PROBE, (gain2 - rate2) / HOSE_PROBE
+    # Eq. 11-12 times n: n r T / V per kg/s
+    vol1, vol2 = chamber_volumes(y, area, v01, v02)
+    return rate1, rate2, polytropic * rt / vol1, polytropic * rt / vol2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _port_substep(coef: np.ndarray, u: float, p_s: float, gain_charge: float,
+                  gain_discharge: float, p_p: float, p_c: float, rate_c: float, gain_c: float,
+                  port_rate: float, area: float, index: float, rt: float, h: float
+                  ) -> tuple[float, float, float, float]:
+    """A port and its chamber over a sub-step ``h`` [s] (:func:`port.port_step`), the map at
+    ``u`` [V] reading the port's pressure ``p_p`` [Pa] (its slope by a finite difference).
+    Returns the new port and chamber pressures, the mean flow into the chamber and the mean
+    flow leaving the valve [kg/s]."""
+    q = chamber_inflow(coef, u, p_p, p_s, gain_charge, gain_discharge)
+    slope = (chamber_inflow(coef, u, p_p + HOSE_SLOPE_STEP, p_s, gain_charge, gain_discharge)
+             - q) / HOSE_SLOPE_STEP
+    p_p, p_c, into, sent = port_step(p_p, p_c, q, slope, rate_c, gain_c, port_rate, area, index,
+                                     rt, h)
+    return max(p_p, MIN_PRESSURE), p_c, into, sent
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _hose_substep(coef: np.ndarray, u: float, p_s: float, gain_charge: float,
                   gain_discharge: float, q_given: float, p0: float, p1: float, w0: float,
                   w1: float, p_c: float, rate_c: float, gain_c: float, node_rate: float,
@@ -403,7 +450,8 @@ def chamber_rates(c: Constants, y: np.ndarray, v: np.ndarray, p1: np.ndarray, p2
     delay back and its flows arrive that delay later (both interpolated between rows; before
     the first row, the first row's); with the hose, each hose (at rest at the first row's
     pressures) advances over each row with its chamber held at the row's pressure, and the
-    chamber receives its mean flow over the row."""
+    chamber receives its mean flow over the row; so does each port of the valve lag's port form
+    (at rest at the first row's pressures)."""
     n = y.shape[0]
     out = np.empty((6, n))
     du = 1e-3
@@ -418,6 +466,9 @@ def chamber_rates(c: Constants, y: np.ndarray, v: np.ndarray, p1: np.ndarray, p2
     if c.hose_steps > 0 and n:
         hose[0, :HOSE_STATES // 2] = p1[0]
         hose[1, :HOSE_STATES // 2] = p2[0]
+    port = np.zeros(2)  # each port's pressure
+    if n:
+        port[0], port[1] = p1[0], p2[0]
     h = c.dt / c.substeps
     for k in range(n):
         if c.hose_steps > 0:
@@ -437,6 +488,18 @@ def chamber_rates(c: Constants, y: np.ndarray, v: np.ndarray, p1: np.ndarray, p2
                         given, hose[i, 0], hose[i, 1], hose[i, 2], hose[i, 3], p, 0.0, 0.0,
                         c.hose_rate, c.hose_accel, c.hose_laminar, c.hose_turbulent, h,
                         c.hose_steps)
+                    if i == 0:
+                        q1 += m / c.substeps
+                    else:
+                        q2 += m / c.substeps
+                    drawn += max(d, 0.0) / c.substeps
+        elif c.port_rate > 0.0:
+            q1, q2, drawn = 0.0, 0.0, 0.0
+            for _ in range(c.substeps):
+                for i, (sign, p) in enumerate(((1.0, p1[k]), (-1.0, p2[k]))):
+                    port[i], _, m, d = _port_substep(
+                        c.flow_coef, sign * u_eq[k], p_s, c.gain_charge, c.gain_discharge,
+                        port[i], p, 0.0, 0.0, c.port_rate, c.port_area, c.port_index, c.rt, h)
                     if i == 0:
                         q1 += m / c.substeps
                     else:
@@ -503,6 +566,7 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
     lagged = lag.shape[0] > 0
     line_on = c.line_delay > 0.0
     hose_on = c.hose_steps > 0
+    port_on = c.port_rate > 0.0
     first_row = VALVE + c.valve_a.shape[0]
     hose_2 = first_row + HOSE_STATES
     rows = (x.shape[0] - first_row) // LINE_COLUMNS
@@ -535,7 +599,9 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
         f_l = f_load[k]
         # Pressures held on measurements (not by regulators): the valve still draws from the
         # line and feeds the flow lag.
-        flows = pressurise or ((line or lagged or line_on or hose_on) and not c.regulated)
+        flows = pressurise or ((line or lagged or line_on or hose_on or port_on)
+                               and not c.regulated)
+        pp1, pp2 = x[PORT1], x[PORT2]
         slot = int(x[LINE_HEAD])
         row = old = new = first_row
         for s in range(k * ns, (k + 1) * ns):
@@ -548,24 +614,11 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
                     q2, f2, r2 = _lagged_flow(lag, f2, r2, q2, x[hose_2])
                 rate1 = rate2 = gain1 = gain2 = 0.0
                 if pressurise:
-                    # What each chamber does without its hose's flow, and per unit of it.
-                    rate1, rate2, _, _ = _chamber_rates(
-                        0.0, 0.0, c.leak_cross, c.leak_atm, c.orifice_cross, c.orifice_atm,
+                    rate1, rate2, gain1, gain2 = _chamber_response(
+                        c.leak_cross, c.leak_atm, c.orifice_cross, c.orifice_atm,
                         c.power_cross, c.power_atm, c.leak_exponent, c.r_gas, c.t_wall, c.rt,
                         c.area, c.v01, c.v02, c.polytropic, c.heat_transfer, y, v, p1, p2, t1,
                         t2)
-                    if c.heat_transfer > 0.0:
-                        gain1, gain2, _, _ = _chamber_rates(
-                            HOSE_PROBE, HOSE_PROBE, c.leak_cross, c.leak_atm, c.orifice_cross,
-                            c.orifice_atm, c.power_cross, c.power_atm, c.leak_exponent,
-                            c.r_gas, c.t_wall, c.rt, c.area, c.v01, c.v02, c.polytropic,
-                            c.heat_transfer, y, v, p1, p2, t1, t2)
-                        gain1 = (gain1 - rate1) / HOSE_PROBE
-                        gain2 = (gain2 - rate2) / HOSE_PROBE
-                    else:  # Eq. 11-12 times n: n r T / V per kg/s
-                        vol1, vol2 = chamber_volumes(y, c.area, c.v01, c.v02)
-                        gain1 = c.polytropic * c.rt / vol1
-                        gain2 = c.polytropic * c.rt / vol2
                 a = first_row
                 x[a], x[a + 1], x[a + 2], x[a + 3], p1_new, m1, d1 = _hose_substep(
                     coef, u_eq[s], p_s, c.gain_charge, c.gain_discharge, q1, x[a], x[a + 1],
@@ -576,6 +629,34 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
                     coef, -u_eq[s], p_s, c.gain_charge, c.gain_discharge, q2, x[a], x[a + 1],
                     x[a + 2], x[a + 3], p2, rate2, gain2, c.hose_rate, c.hose_accel,
                     c.hose_laminar, c.hose_turbulent, h, c.hose_steps)
+                if pressurise:
+                    if c.heat_transfer > 0.0:
+                        _, _, dt1, dt2 = _chamber_rates(
+                            m1, m2, c.leak_cross, c.leak_atm, c.orifice_cross, c.orifice_atm,
+                            c.power_cross, c.power_atm, c.leak_exponent, c.r_gas, c.t_wall,
+                            c.rt, c.area, c.v01, c.v02, c.polytropic, c.heat_transfer, y, v, p1,
+                            p2, t1, t2)
+                        t1 = max(t1 + h * dt1, 1.0)
+                        t2 = max(t2 + h * dt2, 1.0)
+                    p1 = max(p1_new, MIN_PRESSURE)
+                    p2 = max(p2_new, MIN_PRESSURE)
+                if line:
+                    p_s = supply_step(p_s, c.p_supply, c.line_conductance,
+                                      max(d1, 0.0) + max(d2, 0.0), line_decay)
+            elif flows and port_on:
+                rate1 = rate2 = gain1 = gain2 = 0.0
+                if pressurise:
+                    rate1, rate2, gain1, gain2 = _chamber_response(
+                        c.leak_cross, c.leak_atm, c.orifice_cross, c.orifice_atm,
+                        c.power_cross, c.power_atm, c.leak_exponent, c.r_gas, c.t_wall, c.rt,
+                        c.area, c.v01, c.v02, c.polytropic, c.heat_transfer, y, v, p1, p2, t1,
+                        t2)
+                pp1, p1_new, m1, d1 = _port_substep(
+                    coef, u_eq[s], p_s, c.gain_charge, c.gain_discharge, pp1, p1, rate1, gain1,
+                    c.port_rate, c.port_area, c.port_index, c.rt, h)
+                pp2, p2_new, m2, d2 = _port_substep(
+                    coef, -u_eq[s], p_s, c.gain_charge, c.gain_discharge, pp2, p2, rate2, gain2,
+                    c.port_rate, c.port_area, c.port_index, c.rt, h)
                 if pressurise:
                     if c.heat_transfer > 0.0:
                         _, _, dt1, dt2 = _chamber_rates(
@@ -650,6 +731,9 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
         x[SUPPLY] = p_s
         x[FLOW1], x[RATE1], x[FLOW2], x[RATE2] = f1, r1, f2, r2
         x[LINE_HEAD] = slot
+        # Without a port (or with it off), its pressure is the chamber's: a port switched on
+        # starts at rest.
+        x[PORT1], x[PORT2] = (pp1, pp2) if port_on else (p1, p2)
         x[UCMD] = u[k]
         x[UEQ] = u_eq[(k + 1) * ns - 1]
         x[STEP] += 1.0

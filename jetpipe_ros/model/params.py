@@ -63,7 +63,7 @@ FRICTION_PLANES = {
 THERMAL_FORMS = ("polytropic", "heat_transfer")
 LEAKAGE_FORMS = ("laminar", "orifice", "power")
 SUPPLY_FORMS = ("constant", "line")
-LAG_FORMS = ("first_order", "second_order", "flow")
+LAG_FORMS = ("first_order", "second_order", "flow", "port")
 DELAY_FORMS = ("command", "line", "hose")
 DYNAMIC_FRICTION_FORMS = tuple(FRICTION_FORMS)
 FRICTION_UNITS = {"breakaway": "N", "stribeck_velocity": "m/s", "viscous": "N s/m", "coulomb": "N"}
@@ -198,11 +198,22 @@ _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
         _p("form", "first_order", "Lag on the valve's output: first order (a corner), or "
            "second order (a natural frequency and a damping ratio); or flow: a second-order "
            "lag on each chamber's mass flow after the flow map (a port or line between valve "
-           "and chamber)", choices=LAG_FORMS),
+           "and chamber); or port: a port volume before each chamber behind a restriction "
+           "(a filter, a fitting), the valve's map reading the port's pressure",
+           choices=LAG_FORMS),
         _p("corner_frequency", 30.0, "Corner frequency (first order) or natural frequency "
            "(second order, flow) of the lag", "Hz", 0.5, 1000.0),
         _p("damping_ratio", 0.7, "Damping ratio of the lag (forms second_order, flow)", "",
            0.05, 5.0),
+        _p("port_volume", 4e-5, "Volume of the port between the valve and each chamber (form "
+           "port; 0 = none): the valve's map reads its pressure, its gas adiabatic", "m^3",
+           0.0, 1e-3),
+        _p("port_conductance", 3e-9, "Sonic conductance C of the restriction between the port "
+           "and its chamber (form port; ISO 6358, choked flow C rho_0 p_up, critical ratio "
+           "0.528): 1e-8 m^3/(s Pa) = 1 dm^3/(s bar)", "m^3/(s Pa)", 1e-11, 1e-5),
+        _p("port_index", 0.5, "Subsonic index m of that restriction (form port; ISO "
+           "6358-1:2013): 0.5 an orifice, up to 1 a porous element whose drop is linear in "
+           "the flow near equal pressures", "", 0.5, 1.0),
     ],
     "valve_hysteresis": [
         _p("half_width", 0.25, "Hysteresis loop half-width (mean play threshold)", "V",
@@ -390,6 +401,7 @@ class ModelParams(Mapping[str, Any]):
             self._values[name] = check_value(spec, value, where)
         _check_geometry(self._values, where)
         _check_profile(self._values, where)
+        _check_passages(self._values, where)
 
     def __getitem__(self, name: str) -> Any:
         return self._values[name]
@@ -460,6 +472,22 @@ def _check_geometry(values: Mapping[str, Any], where: str) -> None:
                 f"piston sweeps from the centre to the end stop (chamber.piston_area * "
                 f"mechanics.stroke / 2 = {values['chamber.dead_volume_' + str(i)] - volume:g} "
                 f"m^3): chamber {i} would vanish")
+
+
+def _check_passages(values: Mapping[str, Any], where: str) -> None:
+    """At most one passage between the valve and each chamber: the valve lag's port, or the
+    valve delay's line or hose (a port before a line or a hose is not modelled)."""
+    if not (values["effects.valve_lag.enabled"] and values["effects.valve_lag.form"] == "port"
+            and values["effects.valve_lag.port_volume"] > 0.0):
+        return
+    if values["effects.valve_delay.enabled"] and values["effects.valve_delay.form"] in (
+            "line", "hose"):
+        at = f"{where}: " if where else ""
+        raise ParameterError(
+            f"{at}parameter effects.valve_lag.form = port cannot be combined with "
+            f"effects.valve_delay.form = {values['effects.valve_delay.form']} (both place a "
+            f"passage between the valve and each chamber); use the valve delay's command form, "
+            f"or set effects.valve_lag.port_volume to 0")
 
 
 def _check_profile(values: Mapping[str, Any], where: str) -> None:
