@@ -64,8 +64,10 @@ def test_step_of_10mm_settles(probe):
     joints = probe.messages("joint_states", t0)
     t = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in joints])
     y = np.array([m.position[0] for m in joints])
-    assert y.size > 500  # of ~2500; a busy test process drops some
-    assert np.all(np.diff(t) > 0.0)
+    # Of ~2500 a busy test process drops some (411 kept once on a loaded machine): enough
+    # remain when no two are further apart than a tenth of the settling time judged.
+    assert y.size > 100 and np.all(np.diff(t) > 0.0)
+    assert np.max(np.diff(t)) < 0.1 * SETTLE and t[-1] - t[0] > 2.0
     assert _settling_time(t, y, 0.01) < SETTLE
     assert np.max(y) < 0.01 + 1e-3  # overshoot below 1 mm
     u = [m.data for m in probe.messages("voltage_cmd", t0)]

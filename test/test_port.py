@@ -192,3 +192,17 @@ def test_the_port_candidate_vanishes_with_its_volume_and_reads_c_as_an_extent():
     assert candidate.pinned({"port_volume": 4e-5, "port_conductance": 1e-7,
                              "port_index": 0.5}) == []
     assert set(candidate.carries) == {"dead_volume_1", "dead_volume_2"}
+
+
+def test_a_nominal_model_with_a_hose_is_not_offered_a_port():
+    """The diagnosis does not fit a port to a nominal model whose valve delay is a hose (the
+    model holds one passage before each chamber and refuses both): it would stop the diagnosis
+    with a ParameterError. The other valve lag forms stay candidates."""
+    from jetpipe_ros.diagnosis.diagnose import candidates_for
+
+    plain = {c.name for c in candidates_for(ModelParams(), {})}
+    assert {"valve_lag:port", "valve_delay:hose"} <= plain
+    hosed = {c.name for c in candidates_for(
+        ModelParams().with_effect("valve_delay", form="hose", length=1.0), {})}
+    assert "valve_lag:port" not in hosed and "valve_lag:flow" in hosed
+    assert not any(n.startswith("valve_delay") for n in hosed)

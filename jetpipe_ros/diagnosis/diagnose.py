@@ -311,9 +311,19 @@ def diagnose_dataset(dataset: Dataset, nominal: ModelParams | None = None,
         return _diagnose(prepared, nominal, workers, progress, aligned)
 
 
+def candidates_for(nominal: ModelParams, unjudged: Mapping[str, str]) -> list[Candidate]:
+    """The candidates to fit: not an effect the nominal model already has on, nor one these
+    records cannot judge (``unjudged``), nor a form the model cannot hold beside a form it has
+    on (:func:`candidates.combinable`: a port behind a hose)."""
+    already = nominal.enabled_effects()
+    present = [f"{e}:{nominal.get(f'effects.{e}.form', '')}".rstrip(":") for e in already]
+    return [c for c in CANDIDATES.values()
+            if c.effect not in already and c.effect not in unjudged
+            and all(combinable(c.name, e) for e in present)]
+
+
 def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
               progress: Callable[[str], None], aligned: Alignment) -> Diagnosis:
-    already = nominal.enabled_effects()
     dt = prepared.dt
     progress(f"{len(prepared.records)} experiments, {prepared.seconds('train'):.1f} s train, "
              f"{prepared.seconds('holdout'):.1f} s holdout; {prepared.split_note}")
@@ -328,8 +338,7 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
     subsystems = subsystem_gaps(prepared, nominal)
 
     unjudged = cannot_judge(prepared)
-    candidates = [c for c in CANDIDATES.values()
-                  if c.effect not in already and c.effect not in unjudged]
+    candidates = candidates_for(nominal, unjudged)
     names = [c.name for c in candidates]
     progress("how visible each candidate would be at its typical size")
     seen = {c.name: visibility(prepared, nominal, nom_all, c) for c in candidates}
