@@ -359,6 +359,44 @@ def _chamber_response(leak_cross: float, leak_atm: float, orifice_cross: float,
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _passage_response(c: Constants, pressurise: bool, y: float, v: float, p1: float,
+                      p2: float, t1: float, t2: float) -> tuple[float, float, float, float]:
+    """The chambers' pressure rates and gains (:func:`_chamber_response`) that a passage
+    before them (hose, port) advances with; zeros while the pressures are held."""
+    if not pressurise:
+        return 0.0, 0.0, 0.0, 0.0
+    return _chamber_response(c.leak_cross, c.leak_atm, c.orifice_cross, c.orifice_atm,
+                             c.power_cross, c.power_atm, c.leak_exponent, c.r_gas, c.t_wall,
+                             c.rt, c.area, c.v01, c.v02, c.polytropic, c.heat_transfer, y, v,
+                             p1, p2, t1, t2)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _passage_close(c: Constants, pressurise: bool, line: bool, line_decay: float, m1: float,
+                   m2: float, d1: float, d2: float, p1_new: float, p2_new: float, y: float,
+                   v: float, p1: float, p2: float, t1: float, t2: float, p_s: float,
+                   h: float) -> tuple[float, float, float, float, float]:
+    """The end of a sub-step through a passage (hose, port): the chambers' new pressures
+    ``p*_new`` [Pa] and gas temperatures from the mass flows ``m*`` [kg/s] into them, unless
+    held; the supply line drained by the flows ``d*`` the valve draws [kg/s]. Returns p1, p2,
+    t1, t2, p_s."""
+    if pressurise:
+        if c.heat_transfer > 0.0:
+            _, _, dt1, dt2 = _chamber_rates(
+                m1, m2, c.leak_cross, c.leak_atm, c.orifice_cross, c.orifice_atm,
+                c.power_cross, c.power_atm, c.leak_exponent, c.r_gas, c.t_wall, c.rt, c.area,
+                c.v01, c.v02, c.polytropic, c.heat_transfer, y, v, p1, p2, t1, t2)
+            t1 = max(t1 + h * dt1, 1.0)
+            t2 = max(t2 + h * dt2, 1.0)
+        p1 = max(p1_new, MIN_PRESSURE)
+        p2 = max(p2_new, MIN_PRESSURE)
+    if line:
+        p_s = supply_step(p_s, c.p_supply, c.line_conductance, max(d1, 0.0) + max(d2, 0.0),
+                          line_decay)
+    return p1, p2, t1, t2, p_s
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _port_substep(coef: np.ndarray, u: float, p_s: float, gain_charge: float,
                   gain_discharge: float, p_p: float, p_c: float, rate_c: float, gain_c: float,
                   port_rate: float, area: float, index: float, rt: float, h: float
@@ -612,13 +650,8 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
                                              c.gain_charge, c.gain_discharge)
                     q1, f1, r1 = _lagged_flow(lag, f1, r1, q1, x[first_row])
                     q2, f2, r2 = _lagged_flow(lag, f2, r2, q2, x[hose_2])
-                rate1 = rate2 = gain1 = gain2 = 0.0
-                if pressurise:
-                    rate1, rate2, gain1, gain2 = _chamber_response(
-                        c.leak_cross, c.leak_atm, c.orifice_cross, c.orifice_atm,
-                        c.power_cross, c.power_atm, c.leak_exponent, c.r_gas, c.t_wall, c.rt,
-                        c.area, c.v01, c.v02, c.polytropic, c.heat_transfer, y, v, p1, p2, t1,
-                        t2)
+                rate1, rate2, gain1, gain2 = _passage_response(c, pressurise, y, v, p1, p2, t1,
+                                                               t2)
                 a = first_row
                 x[a], x[a + 1], x[a + 2], x[a + 3], p1_new, m1, d1 = _hose_substep(
                     coef, u_eq[s], p_s, c.gain_charge, c.gain_discharge, q1, x[a], x[a + 1],
@@ -629,48 +662,21 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
                     coef, -u_eq[s], p_s, c.gain_charge, c.gain_discharge, q2, x[a], x[a + 1],
                     x[a + 2], x[a + 3], p2, rate2, gain2, c.hose_rate, c.hose_accel,
                     c.hose_laminar, c.hose_turbulent, h, c.hose_steps)
-                if pressurise:
-                    if c.heat_transfer > 0.0:
-                        _, _, dt1, dt2 = _chamber_rates(
-                            m1, m2, c.leak_cross, c.leak_atm, c.orifice_cross, c.orifice_atm,
-                            c.power_cross, c.power_atm, c.leak_exponent, c.r_gas, c.t_wall,
-                            c.rt, c.area, c.v01, c.v02, c.polytropic, c.heat_transfer, y, v, p1,
-                            p2, t1, t2)
-                        t1 = max(t1 + h * dt1, 1.0)
-                        t2 = max(t2 + h * dt2, 1.0)
-                    p1 = max(p1_new, MIN_PRESSURE)
-                    p2 = max(p2_new, MIN_PRESSURE)
-                if line:
-                    p_s = supply_step(p_s, c.p_supply, c.line_conductance,
-                                      max(d1, 0.0) + max(d2, 0.0), line_decay)
+                p1, p2, t1, t2, p_s = _passage_close(c, pressurise, line, line_decay, m1, m2,
+                                                     d1, d2, p1_new, p2_new, y, v, p1, p2,
+                                                     t1, t2, p_s, h)
             elif flows and port_on:
-                rate1 = rate2 = gain1 = gain2 = 0.0
-                if pressurise:
-                    rate1, rate2, gain1, gain2 = _chamber_response(
-                        c.leak_cross, c.leak_atm, c.orifice_cross, c.orifice_atm,
-                        c.power_cross, c.power_atm, c.leak_exponent, c.r_gas, c.t_wall, c.rt,
-                        c.area, c.v01, c.v02, c.polytropic, c.heat_transfer, y, v, p1, p2, t1,
-                        t2)
+                rate1, rate2, gain1, gain2 = _passage_response(c, pressurise, y, v, p1, p2, t1,
+                                                               t2)
                 pp1, p1_new, m1, d1 = _port_substep(
                     coef, u_eq[s], p_s, c.gain_charge, c.gain_discharge, pp1, p1, rate1, gain1,
                     c.port_rate, c.port_area, c.port_index, c.rt, h)
                 pp2, p2_new, m2, d2 = _port_substep(
                     coef, -u_eq[s], p_s, c.gain_charge, c.gain_discharge, pp2, p2, rate2, gain2,
                     c.port_rate, c.port_area, c.port_index, c.rt, h)
-                if pressurise:
-                    if c.heat_transfer > 0.0:
-                        _, _, dt1, dt2 = _chamber_rates(
-                            m1, m2, c.leak_cross, c.leak_atm, c.orifice_cross, c.orifice_atm,
-                            c.power_cross, c.power_atm, c.leak_exponent, c.r_gas, c.t_wall,
-                            c.rt, c.area, c.v01, c.v02, c.polytropic, c.heat_transfer, y, v, p1,
-                            p2, t1, t2)
-                        t1 = max(t1 + h * dt1, 1.0)
-                        t2 = max(t2 + h * dt2, 1.0)
-                    p1 = max(p1_new, MIN_PRESSURE)
-                    p2 = max(p2_new, MIN_PRESSURE)
-                if line:
-                    p_s = supply_step(p_s, c.p_supply, c.line_conductance,
-                                      max(d1, 0.0) + max(d2, 0.0), line_decay)
+                p1, p2, t1, t2, p_s = _passage_close(c, pressurise, line, line_decay, m1, m2,
+                                                     d1, d2, p1_new, p2_new, y, v, p1, p2,
+                                                     t1, t2, p_s, h)
             elif flows:
                 if line_on:
                     # The port's pressures of line_delay sub-steps ago.
