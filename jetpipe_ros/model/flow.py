@@ -106,21 +106,25 @@ LINEAR_RATIO = 0.995
 
 
 @njit(cache=True, error_model="numpy")
-def orifice_function(ratio: float) -> float:
+def orifice_function(ratio: float, index: float = 0.5) -> float:
     """The orifice law's flow function Psi [-] at the downstream/upstream pressure ``ratio``:
     sqrt(2 gamma / (gamma - 1) (r^(2/gamma) - r^((gamma + 1)/gamma))), choked (0.685) at or below
-    the critical ratio 0.528."""
+    the critical ratio 0.528. With a subsonic ``index`` m other than 0.5 (ISO 6358-1:2013; a
+    porous element's m -> 1, :mod:`~jetpipe_ros.model.port`): Psi* (Psi / Psi*)^(2 m)."""
     if ratio <= _CRITICAL_RATIO:
         return CHOKED
     g = GAMMA_AIR
-    return math.sqrt(2.0 * g / (g - 1.0) * (ratio ** (2.0 / g) - ratio ** ((g + 1.0) / g)))
+    psi = math.sqrt(2.0 * g / (g - 1.0) * (ratio ** (2.0 / g) - ratio ** ((g + 1.0) / g)))
+    return psi if index == 0.5 else CHOKED * (psi / CHOKED) ** (2.0 * index)
 
 
 @njit(cache=True, error_model="numpy")
-def orifice_flow(area: float, p_a: float, p_b: float, rt: float) -> float:
+def orifice_flow(area: float, p_a: float, p_b: float, rt: float, index: float = 0.5) -> float:
     """Compressible flow [kg/s] from ``p_a`` to ``p_b`` [Pa] through an orifice of effective
-    area ``area`` [m^2] (ISO 6358 form, choked below the critical ratio 0.528); ``rt`` = r T of
-    the upstream gas [J/kg]. Negative when the flow goes from b to a.
+    area ``area`` [m^2] (ISO 6358 form, choked below the critical ratio 0.528; subsonic
+    ``index`` as :func:`orifice_function`); ``rt`` = r T of the upstream gas [J/kg]. Negative
+    when the flow goes from b to a; linear in the drop within 0.5 % of equal pressures
+    (through the law's value there).
     """
     if area == 0.0 or p_a == p_b:
         return 0.0
@@ -128,9 +132,9 @@ def orifice_flow(area: float, p_a: float, p_b: float, rt: float) -> float:
     p_up = max(p_a, p_b)
     ratio = min(p_a, p_b) / p_up
     if ratio > LINEAR_RATIO:
-        psi = orifice_function(LINEAR_RATIO) * (1.0 - ratio) / (1.0 - LINEAR_RATIO)
+        psi = orifice_function(LINEAR_RATIO, index) * (1.0 - ratio) / (1.0 - LINEAR_RATIO)
     else:
-        psi = orifice_function(ratio)
+        psi = orifice_function(ratio, index)
     return sign * area * p_up / math.sqrt(rt) * psi
 
 

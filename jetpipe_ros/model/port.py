@@ -14,7 +14,7 @@ discharges into the chamber at p_c [Pa] through the restriction:
   choking, r = p_down / p_up. The flow function is the model's one compressible orifice's
   (:func:`~jetpipe_ros.model.flow.orifice_function`, the leakage effect's): with Psi its value
   and Psi* = 0.685 choked, w = A_e p_up / sqrt(r T) Psi* (Psi(r) / Psi*)^(2 m)
-  (:func:`restriction_flow`), the effective area A_e = C rho_0 sqrt(r T_0) / Psi* giving ISO
+  (:func:`~jetpipe_ros.model.flow.orifice_flow` with the index), the effective area A_e = C rho_0 sqrt(r T_0) / Psi* giving ISO
   6358's choked flow (:func:`effective_area`). (Psi / Psi*)^2 and ISO's ellipse with
   b = 0.528 agree within 1 % at every ratio, so this is ISO 6358 with b = 0.528 and m free;
   at m = 0.5 it is the orifice of the leakage effect. b is not a knob: catalogues give
@@ -53,7 +53,7 @@ import math
 
 from numba import njit
 
-from jetpipe_ros.model.flow import CHOKED, LINEAR_RATIO, orifice_function
+from jetpipe_ros.model.flow import CHOKED, LINEAR_RATIO, orifice_flow, orifice_function
 
 #: Density [kg/m^3] and temperature [K] of the standard reference atmosphere (ISO 8778) in
 #: which ISO 6358 gives the sonic conductance.
@@ -61,32 +61,6 @@ RHO_0 = 1.185
 T_0 = 293.15
 #: Pressure step [Pa] of the finite difference giving the restriction's slope in p_c.
 SLOPE_STEP = 10.0
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _subsonic(ratio: float, index: float) -> float:
-    """Psi* (Psi(ratio) / Psi*)^(2 m) [-], m = ``index`` (module docstring)."""
-    psi = orifice_function(ratio)
-    return psi if index == 0.5 else CHOKED * (psi / CHOKED) ** (2.0 * index)
-
-
-@njit(cache=True, error_model="numpy")
-def restriction_flow(area: float, index: float, p_a: float, p_b: float, rt: float) -> float:
-    """Mass flow [kg/s] from ``p_a`` to ``p_b`` [Pa] (negative backwards) through the port's
-    restriction of effective ``area`` [m^2] and subsonic index m = ``index`` (0.5: the model's
-    orifice, :func:`~jetpipe_ros.model.flow.orifice_flow`), ``rt`` = r T [J/kg]: A_e p_up /
-    sqrt(r T) Psi* (Psi(r) / Psi*)^(2 m), linear in the drop within 0.5 % of equal pressures
-    (through the law's value there) as the orifice's."""
-    if area == 0.0 or p_a == p_b:
-        return 0.0
-    sign = 1.0 if p_a > p_b else -1.0
-    p_up = max(p_a, p_b)
-    ratio = min(p_a, p_b) / p_up
-    if ratio > LINEAR_RATIO:
-        psi = _subsonic(LINEAR_RATIO, index) * (1.0 - ratio) / (1.0 - LINEAR_RATIO)
-    else:
-        psi = _subsonic(ratio, index)
-    return sign * area * p_up / math.sqrt(rt) * psi
 
 
 def effective_area(conductance: float, r_gas: float) -> float:
@@ -99,7 +73,7 @@ def effective_area(conductance: float, r_gas: float) -> float:
 def small_drop_conductance(area: float, index: float, rt: float) -> float:
     """Slope [kg/(s Pa)] of the restriction of effective ``area`` [m^2] and subsonic ``index``
     within 0.5 % of equal pressures, where it is linear in the drop; ``rt`` = r T [J/kg]."""
-    return area * _subsonic(LINEAR_RATIO, index) / ((1.0 - LINEAR_RATIO) * math.sqrt(rt))
+    return area * orifice_function(LINEAR_RATIO, index) / ((1.0 - LINEAR_RATIO) * math.sqrt(rt))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -115,8 +89,8 @@ def port_step(p_p: float, p_c: float, q: float, slope: float, rate_c: float, gai
     pressure); ``port_rate`` = gamma r T / V_p [Pa/kg]; ``area`` the restriction's effective
     area [m^2], ``index`` its subsonic index, ``rt`` = r T [J/kg]. Returns the new p_p, p_c,
     the mean flow into the chamber and the mean flow leaving the valve [kg/s] over the step."""
-    w = restriction_flow(area, index, p_p, p_c, rt)
-    g_b = (w - restriction_flow(area, index, p_p, p_c + SLOPE_STEP, rt)) / SLOPE_STEP
+    w = orifice_flow(area, p_p, p_c, rt, index)
+    g_b = (w - orifice_flow(area, p_p, p_c + SLOPE_STEP, rt, index)) / SLOPE_STEP
     # The law is homogeneous of degree 1 in the two pressures (Euler: p_p dw/dp_p + p_c dw/dp_c
     # = w), which gives the other slope without another evaluation.
     g_a = (w + p_c * g_b) / p_p
