@@ -31,12 +31,19 @@ class Probe:
         self._publishers: dict[str, Any] = {}
         self.command: dict[str, float] = {}  #: values re-published by :meth:`repeat`
 
-    def listen(self, *names: str) -> None:
-        """Record the contract topics ``names``."""
+    def listen(self, *names: str, depth: int | None = None) -> None:
+        """Record the contract topics ``names``; ``depth`` [messages] replaces the contract's
+        history depth, so that a test process slower than the stream falls behind it instead
+        of losing samples (the middleware queues them while Python is busy)."""
         for name in names:
             log = self.received.setdefault(name, [])
-            interface.subscription(self.node, name,
-                                   lambda msg, log=log: log.append((time.monotonic(), msg)))
+            t = interface.topic(name)
+            qos = t.qos.profile()
+            if depth is not None:
+                qos.depth = depth
+            self.node.create_subscription(t.message_class(), t.name,
+                                          lambda msg, log=log: log.append((time.monotonic(), msg)),
+                                          qos)
 
     def publish(self, name: str, value: float) -> None:
         """Publish ``value`` once on the Float64 contract topic ``name``."""

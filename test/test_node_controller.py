@@ -34,7 +34,7 @@ def loop(module_launch):
 @pytest.fixture(scope="module")
 def probe(loop, ros_context):
     probe = Probe(ros_context, namespace=NS)
-    probe.listen("position", "voltage_cmd", "joint_states")
+    probe.listen("voltage_cmd", "joint_states", depth=30000)  # position: in joint_states
     probe.repeat(0.05)  # re-publishes probe.command: the setpoint
     probe.command["position_setpoint"] = 0.0
     assert probe.spin_until(lambda: len(probe.messages("voltage_cmd")) > 100, 20.0), \
@@ -53,22 +53,47 @@ def _settling_time(t: np.ndarray, y: np.ndarray, target: float) -> float:
     return float(t[outside[-1] + 1] - t[0])
 
 
+def _after_crossing(probe: Probe, since: float, level: float, seconds: float
+                    ) -> tuple[np.ndarray, np.ndarray, int]:
+    """The joint_states received since ``since`` [s, monotonic] as stamps t [s] and positions y
+    [m], once they hold ``seconds`` [s] of stamps after the first sample that crossed ``level``
+    [m] (upwards if level > the first sample, else downwards); and that sample's index.
+
+    Judged by the simulator's stamps, not by when this test process received the samples: a
+    loaded test process drops samples or falls behind the stream (once it had worked through
+    0.37 s of stamps in 2.5 s of wall time)."""
+    def read() -> tuple[np.ndarray, np.ndarray, int]:
+        joints = probe.messages("joint_states", since)
+        t = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in joints])
+        y = np.array([m.position[0] for m in joints])
+        if y.size == 0:
+            return t, y, -1
+        beyond = np.flatnonzero(y > level if level > y[0] else y < level)
+        return t, y, int(beyond[0]) if beyond.size else -1
+
+    def done() -> bool:
+        t, _, k = read()
+        return k >= 0 and t[-1] - t[k] > seconds
+
+    deadline = time.monotonic() + 60.0
+    while not done():  # judged every 0.25 s: reading all samples after each one is quadratic
+        assert time.monotonic() < deadline, f"no {seconds} s of samples after crossing {level} m"
+        probe.spin_for(0.25)
+    return read()
+
+
 def test_step_of_10mm_settles(probe):
-    """Timed by the simulator's sample stamps (joint_states), not by when this busy test
-    process happened to receive the messages."""
+    """Timed by the simulator's sample stamps from where the position leaves its rest."""
     probe.spin_for(1.0)  # at rest at 0
     t0 = time.monotonic()
     probe.command["position_setpoint"] = 0.01
     probe.publish("position_setpoint", 0.01)
-    probe.spin_for(2.5)
-    joints = probe.messages("joint_states", t0)
-    t = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in joints])
-    y = np.array([m.position[0] for m in joints])
-    # Of ~2500 a busy test process drops some (411 kept once on a loaded machine): enough
-    # remain when no two are further apart than a tenth of the settling time judged.
-    assert y.size > 100 and np.all(np.diff(t) > 0.0)
-    assert np.max(np.diff(t)) < 0.1 * SETTLE and t[-1] - t[0] > 2.0
-    assert _settling_time(t, y, 0.01) < SETTLE
+    t, y, start = _after_crossing(probe, t0, BAND, 2.5)
+    assert start > 0 and abs(y[start - 1]) <= BAND  # the step starts from rest
+    # Queued deep enough, a busy test process keeps every sample; a simulator that cannot keep
+    # its pace on a loaded machine may skip slots: no two further apart than a tenth of SETTLE.
+    assert np.all(np.diff(t) > 0.0) and np.max(np.diff(t[start:])) < 0.1 * SETTLE
+    assert _settling_time(t[start - 1:], y[start - 1:], 0.01) < SETTLE
     assert np.max(y) < 0.01 + 1e-3  # overshoot below 1 mm
     u = [m.data for m in probe.messages("voltage_cmd", t0)]
     assert all(math.isfinite(v) and abs(v) <= 3.0 for v in u)
@@ -79,19 +104,20 @@ def test_setpoint_outside_stroke_is_clamped_and_warned(loop, probe):
     mark = len(ctl.lines)
     t0 = time.monotonic()
     probe.command["position_setpoint"] = 0.1  # 100 mm: beyond the +25 mm end stop
-    probe.spin_for(2.0)
+    t, y, k = _after_crossing(probe, t0, 0.02, 1.5)
     line = ctl.wait_for("outside [-0.024, 0.024] m; clamped to 0.024 m", 5.0, start=mark)
     assert "position_setpoint 0.1 m" in line
-    y = [m.data for m in probe.messages("position", t0 + 1.5)]
-    assert y and abs(np.median(y) - 0.024) < BAND  # held at the clamp, not at the end stop
+    held = y[t > t[k] + 1.0]
+    assert abs(np.median(held) - 0.024) < BAND  # held at the clamp, not at the end stop
     for bad in (math.nan, math.inf):
         probe.publish("position_setpoint", bad)
     probe.spin_for(0.5)
     ctl.wait_for("ignoring non-finite position_setpoint", 5.0, start=mark)
     assert ctl.popen.poll() is None
+    t1 = time.monotonic()
     probe.command["position_setpoint"] = -0.01
-    probe.spin_for(1.5)
-    assert abs(probe.messages("position")[-1].data + 0.01) < BAND  # still in control
+    t, y, k = _after_crossing(probe, t1, 0.0, 1.0)
+    assert abs(y[-1] + 0.01) < BAND  # still in control
 
 
 def test_gains_and_enabled_change_at_run_time(ros_context, monkeypatch):
