@@ -77,7 +77,12 @@ def _after_crossing(probe: Probe, since: float, level: float, seconds: float
 
     deadline = time.monotonic() + 60.0
     while not done():  # judged every 0.25 s: reading all samples after each one is quadratic
-        assert time.monotonic() < deadline, f"no {seconds} s of samples after crossing {level} m"
+        if time.monotonic() > deadline:
+            t, y, k = read()
+            pytest.fail(f"no {seconds} s of samples after crossing {level} m in 60 s: "
+                        f"{y.size} samples received over {np.ptp(t) if y.size else 0:.3f} s of "
+                        f"stamps, y from {np.min(y, initial=np.nan):.4g} to "
+                        f"{np.max(y, initial=np.nan):.4g} m, crossed at sample {k}")
         probe.spin_for(0.25)
     return read()
 
