@@ -65,15 +65,21 @@ def test_a_force_that_depends_on_position_is_placed_in_the_mechanics(tmp_path):
     assert replays["mechanics"]["gap"] > 5 * replays["valve_and_chambers"]["gap"]
 
 
-def test_the_valve_and_the_chambers_are_told_apart_by_the_flow_map(tmp_path):
+@pytest.mark.parametrize("effect, values, subsystem", [
+    ("pressure_dependent_gain", {"slope": 0.3}, "valve"),
+    ("wall_heat_exchange", {"heat_transfer_coefficient": 30.0}, "chamber")])
+def test_the_valve_and_the_chambers_are_told_apart_by_the_flow_map(tmp_path, effect, values,
+                                                                   subsystem):
     """Both replay from the measured motion with a gap the mechanics has not. A valve whose
     flow gain moves 3 % per bar with the chamber pressure: Eq. 8 times a smooth gain, fitted
     afresh, removes most of the chambers' replay gap (valve). Gas exchanging heat with the walls
-    (30 W/(m^2 K)) is no static map of command and pressure: it does not (chamber)."""
-    valve = placed(tmp_path / "gain", "pressure_dependent_gain", slope=0.3)
-    chamber = placed(tmp_path / "heat", "wall_heat_exchange", heat_transfer_coefficient=30.0)
-    for found in (valve, chamber):
-        replays = found["replays"]
-        assert replays["valve_and_chambers"]["gap"] > 3 * replays["mechanics"]["gap"]
-    assert valve["subsystem"] == "valve" and valve["flow_map_removed"] > PLACES
-    assert chamber["subsystem"] == "chamber" and chamber["flow_map_removed"] < 0.25
+    (30 W/(m^2 K)) is no static map of command and pressure: it does not (chamber). One
+    placement per case, so the two run side by side."""
+    found = placed(tmp_path, effect, **values)
+    replays = found["replays"]
+    assert replays["valve_and_chambers"]["gap"] > 3 * replays["mechanics"]["gap"]
+    assert found["subsystem"] == subsystem
+    if subsystem == "valve":
+        assert found["flow_map_removed"] > PLACES
+    else:
+        assert found["flow_map_removed"] < 0.25
