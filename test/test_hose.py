@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from locked_step import chamber_time_constant
 
 from jetpipe_ros.diagnosis.candidates import CANDIDATES
 from jetpipe_ros.model import Actuator, ModelParams, build_constants, kernel, simulate
@@ -106,18 +107,8 @@ def test_the_hose_volume_adds_to_the_chamber_at_low_frequency():
     (measured 46.4 %; an isothermal hose would give 65.6 %).
     Each time constant is the area over the normalised step response less the valve's own mean
     delay (the same area over its u_eq: 2 ms of delay and the chain's lags)."""
-    locked = P.with_values({"mechanics.locked": True})
-    u = np.concatenate([np.zeros(20), np.full(2500, 0.05)])
-
-    def area(x):
-        return float(np.sum(x[-1] - x) * 1e-3 / (x[-1] - x[0]))
-
-    def time_constant(params):
-        run = simulate(params, u)
-        return area(run.p1[20:]) - area(run.u_eq[20:])
-
-    nominal = time_constant(locked)
-    with_hose = time_constant(hose(locked, 2.0, 0.008))
+    nominal = chamber_time_constant(P)
+    with_hose = chamber_time_constant(hose(P, 2.0, 0.008))
     v_hose = math.pi * 0.008 ** 2 / 4.0 * 2.0
     expected = v_hose / (GAMMA_AIR * P["chamber.dead_volume_1"])
     assert with_hose / nominal - 1.0 == pytest.approx(expected, rel=0.02)

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from locked_step import chamber_time_constant
 
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, combinable
 from jetpipe_ros.model import Actuator, ModelParams, ParameterError, build_constants, kernel
@@ -121,18 +122,8 @@ def test_the_port_volume_adds_to_the_chamber_at_low_frequency():
     V_p / (gamma V_1) = 28.0 % of chamber 1's 153.3 cm^3 (isothermal), within 3 % of that (an
     isothermal port would give 39.1 %). Each time constant is the area over the normalised step
     response less the valve's own mean delay (the same area over its u_eq)."""
-    locked = P.with_values({"mechanics.locked": True})
-    u = np.concatenate([np.zeros(20), np.full(2500, 0.05)])
-
-    def area(x):
-        return float(np.sum(x[-1] - x) * 1e-3 / (x[-1] - x[0]))
-
-    def time_constant(params):
-        run = simulate(params, u)
-        return area(run.p1[20:]) - area(run.u_eq[20:])
-
-    nominal = time_constant(locked)
-    with_port = time_constant(port(locked, 6e-5, 3e-8))
+    nominal = chamber_time_constant(P)
+    with_port = chamber_time_constant(port(P, 6e-5, 3e-8))
     expected = 6e-5 / (GAMMA_AIR * P["chamber.dead_volume_1"])
     assert with_port / nominal - 1.0 == pytest.approx(expected, rel=0.03)
 

@@ -109,8 +109,9 @@ LINEAR_RATIO = 0.995
 def orifice_function(ratio: float, index: float = 0.5) -> float:
     """The orifice law's flow function Psi [-] at the downstream/upstream pressure ``ratio``:
     sqrt(2 gamma / (gamma - 1) (r^(2/gamma) - r^((gamma + 1)/gamma))), choked (0.685) at or below
-    the critical ratio 0.528. With a subsonic ``index`` m other than 0.5 (ISO 6358-1:2013; a
-    porous element's m -> 1, :mod:`~jetpipe_ros.model.port`): Psi* (Psi / Psi*)^(2 m)."""
+    the critical ratio 0.528 (an isentropic nozzle's). With a subsonic ``index`` m other than
+    0.5 (as ISO 6358-1:2013 writes its subsonic law; a porous element's m -> 1,
+    :mod:`~jetpipe_ros.model.port`): Psi* (Psi / Psi*)^(2 m)."""
     if ratio <= _CRITICAL_RATIO:
         return CHOKED
     g = GAMMA_AIR
@@ -121,8 +122,9 @@ def orifice_function(ratio: float, index: float = 0.5) -> float:
 @njit(cache=True, error_model="numpy")
 def orifice_flow(area: float, p_a: float, p_b: float, rt: float, index: float = 0.5) -> float:
     """Compressible flow [kg/s] from ``p_a`` to ``p_b`` [Pa] through an orifice of effective
-    area ``area`` [m^2] (ISO 6358 form, choked below the critical ratio 0.528; subsonic
-    ``index`` as :func:`orifice_function`); ``rt`` = r T of the upstream gas [J/kg]. Negative
+    area ``area`` [m^2] (the isentropic nozzle law, choked below the critical ratio 0.528:
+    within 1 % of ISO 6358's ellipse with b = 0.528; subsonic ``index`` as
+    :func:`orifice_function`); ``rt`` = r T of the upstream gas [J/kg]. Negative
     when the flow goes from b to a; linear in the drop within 0.5 % of equal pressures
     (through the law's value there).
     """
