@@ -8,7 +8,8 @@
         load_force: 0.0     # N, constant, optional
         role: train         # train | holdout, optional
         units: {u: mV}      # units of this CSV's columns, optional (overrides the top level)
-    units: {t: ms, p1: bar gauge, p2: bar gauge}   # optional, for every experiment
+    units: {t: ms, p1: bar gauge, p2: bar gauge, gauge_reference: 1013.25 hPa}  # optional,
+                    # for every experiment; gauge_reference: the ambient gauge is relative to
 
 Units (:mod:`jetpipe_ros.dataset.units`) are converted to SI when the experiments are read; each
 experiment's notes, and :attr:`Dataset.notes`, say what was converted and what was done to its

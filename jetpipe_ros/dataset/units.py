@@ -11,10 +11,16 @@ An experiment CSV is in the contract's units (``t`` [s], ``u`` [V], ``y`` [m], `
 The reader converts the declared columns to SI before any other check, so the plausibility
 checks (:mod:`jetpipe_ros.dataset.plausibility`) run on SI values and a declared unit that is
 still wrong is caught as if nothing had been declared. A conversion is ``x * factor + offset``;
-the offset is only for gauge pressure, which is relative to the atmosphere: the reader adds
-:data:`jetpipe_ros.model.flow.P_ATM` (the model's atmosphere) after scaling. Pressure units are
-absolute unless spelled gauge: ``bar gauge``, ``barg``, ``kPa gauge``, ``psig``; ``bar``,
-``bar absolute``, ``bara`` are absolute. Units are case-sensitive (``MPa`` is not ``mPa``).
+the offset is only for gauge pressure, which is relative to the atmosphere: the reader adds the
+reference declared as ``gauge_reference`` (an absolute pressure with its unit, e.g. ``101325
+Pa`` or ``1013.25 hPa``: the barometer's reading, or the standard atmosphere a logger that
+converts absolute readings to gauge subtracted), else :data:`jetpipe_ros.model.flow.P_ATM` (the
+model's atmosphere, 1 bar), after scaling. The ambient pressure varies by several kPa with the
+weather and the altitude, and a reference that is off shifts both pressures alike, as a common
+bias of the pressure sensors would (the diagnosis reads it as one, ``sensor_dynamics``): declare
+it where it is known. Pressure units are absolute unless spelled gauge: ``bar gauge``,
+``barg``, ``kPa gauge``, ``psig``; ``bar``, ``bar absolute``, ``bara`` are absolute. Units are
+case-sensitive (``MPa`` is not ``mPa``).
 """
 
 from __future__ import annotations
@@ -42,6 +48,10 @@ PRESSURES = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6, "bar": 1e5, "mbar": 1e2, "hPa": 
 PRESSURE_COLUMNS = ("p1", "p2")
 #: Columns a unit can be declared for, in contract order.
 COLUMNS = ("t", "u", "y", "p1", "p2", "v", "f_load")
+#: The key of a ``units:`` mapping that gives the absolute pressure gauge pressures are relative
+#: to, and the range accepted for it [Pa] (sea level's extremes and 9 km of altitude).
+REFERENCE = "gauge_reference"
+REFERENCE_RANGE = (3.0e4, 1.2e5)
 
 
 @dataclass(frozen=True)
@@ -80,16 +90,17 @@ def accepted(column: str) -> str:
     return ", ".join(_SCALES[column][1])
 
 
-def parse(column: str, text: Any) -> Unit:
-    """The unit ``text`` declared for ``column``; ValueError (naming both and listing the
-    accepted units) if either is unknown."""
+def parse(column: str, text: Any, reference: float = P_ATM) -> Unit:
+    """The unit ``text`` declared for ``column`` (a gauge pressure relative to ``reference``
+    [Pa]); ValueError (naming both and listing the accepted units) if either is unknown."""
     if column not in COLUMNS:
         raise ValueError(f"unknown column {column!r}; units can be declared for "
-                         f"{', '.join(COLUMNS)}")
+                         f"{', '.join(COLUMNS)} (and {REFERENCE}, the absolute pressure gauge "
+                         f"pressures are relative to)")
     name = " ".join(text.split()) if isinstance(text, str) else None
     if name:
         if column in PRESSURE_COLUMNS:
-            unit = _pressure(column, name)
+            unit = _pressure(column, name, reference)
             if unit is not None:
                 return unit
         else:
@@ -99,14 +110,35 @@ def parse(column: str, text: Any) -> Unit:
     raise ValueError(f"column {column!r}: unknown unit {text!r}; accepted: {accepted(column)}")
 
 
-def _pressure(column: str, name: str) -> Unit | None:
-    """A pressure unit, absolute or gauge, or None if ``name`` is none of them."""
+def _pressure(column: str, name: str, reference: float) -> Unit | None:
+    """A pressure unit, absolute or gauge (relative to ``reference`` [Pa]), or None if
+    ``name`` is none of them."""
     for base, factor in PRESSURES.items():
         for gauge, spellings in ((False, (base, f"{base} absolute", f"{base} abs", f"{base}a")),
                                  (True, (f"{base} gauge", f"{base}g"))):
             if name in spellings:
-                return Unit(column, name, "Pa absolute", factor, P_ATM if gauge else 0.0)
+                return Unit(column, name, "Pa absolute", factor, reference if gauge else 0.0)
     return None
+
+
+def gauge_reference(text: Any) -> float:
+    """The absolute pressure [Pa] that ``gauge_reference: text`` declares (a number and an
+    absolute pressure unit, e.g. ``101325 Pa``, ``1013.25 hPa``, ``1.01325 bar``); ValueError
+    naming the key, the value and what is accepted."""
+    words = text.split() if isinstance(text, str) else []
+    unit = _pressure(REFERENCE, words[1], 1.0) if len(words) == 2 else None  # 1.0: gauge
+    try:
+        value = float(words[0]) * unit.factor if unit is not None and not unit.offset else None
+    except ValueError:
+        value = None
+    if value is None:
+        raise ValueError(f"{REFERENCE}: expected an absolute pressure and its unit (e.g. "
+                         f"'101325 Pa', '1013.25 hPa'), got {text!r}")
+    low, high = REFERENCE_RANGE
+    if not low <= value <= high:
+        raise ValueError(f"{REFERENCE}: {text!r} is {value:g} Pa, outside the "
+                         f"{low:g}-{high:g} Pa an ambient pressure can have")
+    return value
 
 
 def declared(where: str, raw: Any) -> dict[str, str]:
@@ -120,7 +152,10 @@ def declared(where: str, raw: Any) -> dict[str, str]:
     out: dict[str, str] = {}
     for column, text in raw.items():
         try:
-            parse(column, text)
+            if column == REFERENCE:
+                gauge_reference(text)
+            else:
+                parse(column, text)
         except ValueError as exc:
             raise DatasetError(f"{where}: {exc}") from None
         out[column] = text
@@ -130,11 +165,20 @@ def declared(where: str, raw: Any) -> dict[str, str]:
 def to_si(where: str, cols: dict[str, np.ndarray], units: Mapping[str, str] | None) -> list[str]:
     """Convert the columns of ``cols`` (in place) from the declared ``units`` to SI; return one
     note per conversion. Columns declared but absent are ignored (a dataset-wide declaration
-    covers experiments without that sensor)."""
+    covers experiments without that sensor). A gauge pressure without a declared
+    ``gauge_reference`` gets the model's atmosphere, and its note says so."""
+    units = declared(where, units)
+    given = REFERENCE in units
+    reference = gauge_reference(units[REFERENCE]) if given else P_ATM
     notes = []
-    for column, text in declared(where, units).items():
-        unit = parse(column, text)
+    for column, text in units.items():
+        if column == REFERENCE:
+            continue
+        unit = parse(column, text, reference)
         if column in cols and not unit.identity:
             cols[column] = unit.convert(cols[column])
-            notes.append(unit.note())
+            assumed = (f"; the ambient pressure the gauge is relative to assumed, not declared "
+                       f"({REFERENCE}): a reference off by some kPa reads as a common bias of "
+                       f"the pressure sensors") if unit.offset and not given else ""
+            notes.append(unit.note() + assumed)
     return notes

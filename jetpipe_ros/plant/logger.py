@@ -8,7 +8,10 @@ otherwise. Each logger here rewrites a recorded dataset directory as one of them
   (at t_k+1): every measurement column moves one row up, the last row is dropped;
 - ``lossy``: a logger on a non-real-time host: 1 % of the rows lost at random and every stamp
   taken from a clock with jitter (uniform, +-0.3 of a sample);
-- ``gauge_mm``: pressures in bar gauge and the position in mm, declared in ``dataset.yaml``;
+- ``gauge_mm``: pressures in bar gauge and the position in mm, declared in ``dataset.yaml``,
+  the gauge relative to the standard atmosphere (101325 Pa), which it declares too: the plant's
+  ambient is 1 bar, so a reader that took the model's 1 bar for the reference would see both
+  pressures 1.3 kPa low;
 - ``one_pressure``: a bench with one pressure sensor (chamber 1): column ``p2`` dropped;
 - ``position_only``: no pressure sensors: ``p1`` and ``p2`` dropped.
 
@@ -91,7 +94,8 @@ def gauge_mm(root: Path, rng: np.random.Generator) -> None:
         _write(path, header, data)
     index = root / "dataset.yaml"
     doc = yaml.safe_load(index.read_text())
-    doc["units"] = {"y": "mm", "v": "mm/s", "p1": "bar gauge", "p2": "bar gauge"}
+    doc["units"] = {"y": "mm", "v": "mm/s", "p1": "bar gauge", "p2": "bar gauge",
+                    "gauge_reference": f"{P_ATM_LOGGER:.0f} Pa"}
     index.write_text(yaml.safe_dump(doc, sort_keys=False))
 
 
