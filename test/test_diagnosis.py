@@ -340,3 +340,8 @@ def test_a_real_loggers_record_is_diagnosed_and_its_output_follows_the_schema(tm
     assert not {"friction_dynamics", "moving_mass"} & {r["effect"] for r in doc["ranking"]}
     assert doc["data"]["rows_not_compared"] >= 3 * len(out)
     assert doc["verdict"]["effect"] == result["verdict"]["effect"] == "valve_lag"
+    # Gauge without its reference: the model's 1 bar assumed and said so, in the corrections
+    # and beside the effect named (this logger did subtract 1 bar, but nothing says so).
+    assert any("+ 100000 Pa" in c and "assumed, not declared (gauge_reference)" in c
+               for c in doc["data"]["corrections"])
+    assert "declared gauge without the ambient pressure" in doc["verdict"]["reason"]

@@ -52,6 +52,8 @@ COLUMNS = ("t", "u", "y", "p1", "p2", "v", "f_load")
 #: to, and the range accepted for it [Pa] (sea level's extremes and 9 km of altitude).
 REFERENCE = "gauge_reference"
 REFERENCE_RANGE = (3.0e4, 1.2e5)
+#: Words of the note of a gauge pressure converted with the reference assumed.
+ASSUMED = f"assumed, not declared ({REFERENCE})"
 
 
 @dataclass(frozen=True)
@@ -177,8 +179,8 @@ def to_si(where: str, cols: dict[str, np.ndarray], units: Mapping[str, str] | No
         unit = parse(column, text, reference)
         if column in cols and not unit.identity:
             cols[column] = unit.convert(cols[column])
-            assumed = (f"; the ambient pressure the gauge is relative to assumed, not declared "
-                       f"({REFERENCE}): a reference off by some kPa reads as a common bias of "
-                       f"the pressure sensors") if unit.offset and not given else ""
+            assumed = (f"; the ambient pressure the gauge is relative to {ASSUMED}: a "
+                       f"reference off by some kPa reads as a common bias of the pressure "
+                       f"sensors") if unit.offset and not given else ""
             notes.append(unit.note() + assumed)
     return notes
