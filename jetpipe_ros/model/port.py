@@ -14,18 +14,18 @@ discharges into the chamber at p_c [Pa] through the restriction:
   choking, r = p_down / p_up. The flow function is the model's one compressible orifice's
   (:func:`~jetpipe_ros.model.flow.orifice_function`, the leakage effect's): with Psi its value
   and Psi* = 0.685 choked, w = A_e p_up / sqrt(r T) Psi* (Psi(r) / Psi*)^(2 m)
-  (:func:`~jetpipe_ros.model.flow.orifice_flow` with the index), the effective area A_e = C rho_0 sqrt(r T_0) / Psi* giving ISO
-  6358's choked flow (:func:`effective_area`). (Psi / Psi*)^2 and ISO's ellipse with
-  b = 0.528 agree within 1 % at every ratio, so this is ISO 6358 with b = 0.528 and m free;
-  at m = 0.5 it is the orifice of the leakage effect. b is not a knob: catalogues give
-  0.2-0.5 for filters, but at the drops a port passes in use (a few % of the pressure) the
-  law goes as (2 (1 - r) / (1 - b))^m, in which b only scales C; a free b would be a knob the
-  records cannot tell from C. m is: 0.5 is an orifice or a fitting (the drop grows as the
-  flow squared), a porous element (a sintered filter), whose flow through the pores is
-  laminar, drops in proportion to the flow, and m = 1 is that limit (the law linear in the
-  drop until it nears choking). Within 0.5 % of equal pressures the law is linear in the drop
-  (the orifice's own rule), its conductance there G_0 (:func:`small_drop_conductance`):
-  34.2 C kg/(s Pa) at m = 0.5 and 25 degC, 5.0 C at m = 1.
+  (:func:`~jetpipe_ros.model.flow.orifice_flow` with the index), the effective area
+  A_e = C rho_0 sqrt(r T_0) / Psi* giving ISO 6358's choked flow (:func:`effective_area`).
+  (Psi / Psi*)^2 and ISO's ellipse with b = 0.528 agree within 1 % at every ratio, so this is ISO
+  6358 with b = 0.528 and m free; at m = 0.5 it is the orifice of the leakage effect. b is not a
+  knob: catalogues give 0.2-0.5 for filters, but at the drops a port passes in use (a few % of the
+  pressure) the law goes as (2 (1 - r) / (1 - b))^m, in which b only scales C; a free b would be a
+  knob the records cannot tell from C. m is: 0.5 is an orifice or a fitting (the drop grows as the
+  flow squared), a porous element (a sintered filter), whose flow through the pores is laminar,
+  drops in proportion to the flow, and m = 1 is that limit (the law linear in the drop until it
+  nears choking). Within 0.5 % of equal pressures the law is linear in the drop (the orifice's own
+  rule), its conductance there G_0 (:func:`small_drop_conductance`): 34.2 C kg/(s Pa) at m = 0.5 and
+  25 degC, 5.0 C at m = 1.
 - **Gas of the port: adiabatic.** Heat crosses a passage of diameter d in about d^2 / (4 alpha)
   (alpha = 2e-5 m^2/s at 1 bar, less at higher density): 0.3 s for 5 mm at 1 bar, over 1 s at
   5 bar, slower than the campaign's signals (as the hose's gas, :mod:`hose`); the port's
@@ -35,16 +35,16 @@ discharges into the chamber at p_c [Pa] through the restriction:
   (G_0 at rest): 40 cm^3 behind C = 3e-9 m^3/(s Pa) (0.3 dm^3/(s bar), a push-in fitting)
   at m = 0.5 gives 3.0 ms at rest, 18 ms passing 1 g/s (its drop then 0.46 bar).
 
-Integration (:func:`port_step`, one sub-step): the port and its chamber together by the
-linearly implicit theta rule, the map's slope and the restriction's slopes frozen over the
-step (the slope in p_c by a finite difference, that in p_p from it by Euler's identity for a
-law homogeneous of degree 1 in the two pressures), theta = max(1/2, 1 - 1/x), x = h (gamma r T / V_p (G + K_v) + g_c G) the sum of the two
-modes' rates times the step (g_c the chamber's pressure rate per inflow): the trapezoid
-(second order, no numerical damping) while x <= 2, i.e. down to a port of an eighth of a sample
-at 4 sub-steps; above, theta rises continuously so that no mode changes sign over a step (a
-port much faster than the step relaxes to its quasi-steady pressure instead of ringing), as a
-fit that tries a tiny volume behind a wide restriction needs. Mass is conserved: what the port
-gains is what the valve sent less what the chamber received over the step.
+Integration (:func:`port_step`, one sub-step): the port and its chamber together by the linearly
+implicit theta rule, the map's slope and the restriction's slopes frozen over the step (the slope in
+p_c by a finite difference, that in p_p from it by Euler's identity for a law homogeneous of degree
+1 in the two pressures), theta = max(1/2, 1 - 1/x), x = h (gamma r T / V_p (G + K_v) + g_c G) the
+sum of the two modes' rates times the step (g_c the chamber's pressure rate per inflow): the
+trapezoid (second order, no numerical damping) while x <= 2, i.e. down to a port of an eighth of a
+sample at 4 sub-steps; above, theta rises continuously so that no mode changes sign over a step (a
+port much faster than the step relaxes to its quasi-steady pressure instead of ringing), as a fit
+that tries a tiny volume behind a wide restriction needs. Mass is conserved: what the port gains is
+what the valve sent less what the chamber received over the step.
 """
 
 from __future__ import annotations
