@@ -112,15 +112,25 @@ def parse(column: str, text: Any, reference: float = P_ATM) -> Unit:
     raise ValueError(f"column {column!r}: unknown unit {text!r}; accepted: {accepted(column)}")
 
 
-def _pressure(column: str, name: str, reference: float) -> Unit | None:
-    """A pressure unit, absolute or gauge (relative to ``reference`` [Pa]), or None if
-    ``name`` is none of them."""
+def _spelling(name: str) -> tuple[float, bool] | None:
+    """The factor to Pa of pressure unit ``name`` and whether it is gauge, or None if ``name``
+    is no pressure unit."""
     for base, factor in PRESSURES.items():
         for gauge, spellings in ((False, (base, f"{base} absolute", f"{base} abs", f"{base}a")),
                                  (True, (f"{base} gauge", f"{base}g"))):
             if name in spellings:
-                return Unit(column, name, "Pa absolute", factor, reference if gauge else 0.0)
+                return factor, gauge
     return None
+
+
+def _pressure(column: str, name: str, reference: float) -> Unit | None:
+    """A pressure unit, absolute or gauge (relative to ``reference`` [Pa]), or None if
+    ``name`` is none of them."""
+    found = _spelling(name)
+    if found is None:
+        return None
+    factor, gauge = found
+    return Unit(column, name, "Pa absolute", factor, reference if gauge else 0.0)
 
 
 def gauge_reference(text: Any) -> float:
@@ -128,9 +138,9 @@ def gauge_reference(text: Any) -> float:
     absolute pressure unit, e.g. ``101325 Pa``, ``1013.25 hPa``, ``1.01325 bar``); ValueError
     naming the key, the value and what is accepted."""
     words = text.split() if isinstance(text, str) else []
-    unit = _pressure(REFERENCE, words[1], 1.0) if len(words) == 2 else None  # 1.0: gauge
+    found = _spelling(words[1]) if len(words) == 2 else None
     try:
-        value = float(words[0]) * unit.factor if unit is not None and not unit.offset else None
+        value = float(words[0]) * found[0] if found is not None and not found[1] else None
     except ValueError:
         value = None
     if value is None:
