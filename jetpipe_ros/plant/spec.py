@@ -141,7 +141,8 @@ EFFECT_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
 class PlantSpec:
     """One plant: the model's parameters (nominal values, the bench's deviations, rig switches,
     sensor noise; model effects off) and the real effects on, name -> parameters (missing
-    parameters take their defaults). ``substeps``: integration sub-steps per sample.
+    parameters take their defaults). ``substeps``: integration sub-steps per sample, at least
+    (more at sample times beyond 1 ms: :func:`jetpipe_ros.plant.constants.substeps_of`).
 
     Raises :class:`~jetpipe_ros.plant.PlantError` naming the effect and parameter on an
     unknown name, a value out of range, or a model effect switched on.
