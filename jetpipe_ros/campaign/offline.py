@@ -71,7 +71,8 @@ def run_campaign_offline(params: ModelParams, campaign: Campaign, out_dir: str |
     Args:
         params: the model that stands in for the hardware (effects, noise as configured;
             ``sensors.noise`` decides whether the CSVs are noisy). ``mechanics.locked`` is set
-            per phase by the plan, and ``integration.sample_time`` by the campaign.
+            per phase by the plan, and ``integration.sample_time`` by the campaign (with
+            sub-steps no longer than the parameters' own: ``ModelParams.at_sample_time``).
         campaign: the plan, e.g. :func:`~jetpipe_ros.campaign.default_campaign`.
         out_dir: dataset directory to create (written atomically).
         seed: if given, replaces ``sensors.seed``; the same seed gives the same dataset.
@@ -88,11 +89,13 @@ def run_campaign_offline(params: ModelParams, campaign: Campaign, out_dir: str |
         ``dataset.yaml`` gives piston, load_force, role, kind (open_loop | closed_loop) and
         ``regulated: true`` for the regulated friction tests (what ``jetpipe identify`` reads).
     """
-    changes: dict[str, object] = {"integration.sample_time": campaign.sample_time,
-                                  "mechanics.locked": False}
+    # At the campaign's sample time with sub-steps no longer than the parameters' own: a
+    # campaign logged at 200 Hz is the same physics sampled less often (with 4 sub-steps of
+    # 1.25 ms the model's own 200 Hz record missed its 1 kHz one by 82 um and 1.3 kPa).
+    changes: dict[str, object] = {"mechanics.locked": False}
     if seed is not None:
         changes["sensors.seed"] = int(seed)
-    act = actuator(params.with_values(changes))
+    act = actuator(params.at_sample_time(campaign.sample_time).with_values(changes))
     pid = Pid(controller or PidConfig(), campaign.sample_time)
     out = act.outputs()
     experiments = []

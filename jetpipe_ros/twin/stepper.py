@@ -62,7 +62,7 @@ class Stepper:
 
     def __init__(self, params: ModelParams, dt: float, horizon: float = HORIZON,
                  warmup: float = WARMUP) -> None:
-        self.params = params.with_values({"sensors.noise": False, "integration.sample_time": dt})
+        self.params = params.at_sample_time(dt).with_values({"sensors.noise": False})
         self.act = Actuator(self.params)
         self.dt = dt
         self.period = max(int(round(horizon / dt)), 2)
