@@ -119,20 +119,16 @@ def predict(params: ModelParams, rec: Record, dt: float, mode: str = "full",
     if mode == "chambers" and not rec.locked:
         drive = _motion_drive(rec, y)
     elif mode == "mechanics":
-        drive[:, kernel.DRIVE_P1] = p1[:-1]
-        drive[:, kernel.DRIVE_P2] = p2[:-1]
+        # A driven step holds the pressures: at their mean over the step, so the force on the
+        # piston is not half a sample late.
+        drive[:, kernel.DRIVE_P1] = 0.5 * (p1[:-1] + p1[1:])
+        drive[:, kernel.DRIVE_P2] = 0.5 * (p2[:-1] + p2[1:])
         if not rec.locked:
             held = windows(n, dt, horizon, warmup)
-            rows = held[:-1]
-            drive[rows, kernel.DRIVE_Y] = y[:-1][rows]
-            drive[rows, kernel.DRIVE_V] = rec.v[:-1][rows]
+            _drive_to_next(drive, held, y, rec.v, dt)
     elif mode == "full" and not rec.locked:
         held = windows(n, dt, horizon, warmup)
-        rows = held[:-1]
-        drive[rows, kernel.DRIVE_Y] = y[:-1][rows]
-        drive[rows, kernel.DRIVE_V] = rec.v[:-1][rows]
-        drive[rows, kernel.DRIVE_P1] = p1[:-1][rows]
-        drive[rows, kernel.DRIVE_P2] = p2[:-1][rows]
+        _drive_to_next(drive, held, y, rec.v, dt, p1, p2)
     out = _run_actuator(act, rec, drive)
     free = ~held
     free[0] = False
@@ -140,11 +136,33 @@ def predict(params: ModelParams, rec: Record, dt: float, mode: str = "full",
                       p2=out[:, kernel.OUT_P2_MEAS], free=free)
 
 
+def _drive_to_next(drive: np.ndarray, held: np.ndarray, y: np.ndarray, v: np.ndarray,
+                   dt: float, p1: np.ndarray | None = None,
+                   p2: np.ndarray | None = None) -> None:
+    """Fill ``drive`` so that each step that starts on a ``held`` sample ends on the measured
+    state of the sample after it: the free run after a warm-up then starts from the state
+    measured where it starts. A driven step moves the piston at the driven velocity and holds
+    the pressures, so the position is driven to y_{k+1} - v_{k+1} dt, the velocity and the
+    pressures to those of sample k+1. (Driven with sample k's, every restart began with the
+    pressures a sample old and the velocity a sample late: the model, predicting its own
+    noise-free records, missed them by 230 um and 6.6 kPa RMS at 200 Hz, 45 um and 0.9 kPa at
+    1 kHz, on a 3 V square wave into the end stops.)"""
+    rows = held[:-1]
+    drive[rows, kernel.DRIVE_Y] = (y[1:] - v[1:] * dt)[rows]
+    drive[rows, kernel.DRIVE_V] = v[1:][rows]
+    if p1 is not None and p2 is not None:
+        drive[rows, kernel.DRIVE_P1] = p1[1:][rows]
+        drive[rows, kernel.DRIVE_P2] = p2[1:][rows]
+
+
 def _motion_drive(rec: Record, y: np.ndarray) -> np.ndarray:
-    """The kernel's drive that holds the piston on the measured (smoothed) motion."""
+    """The kernel's drive that holds the piston on the measured (smoothed) motion ``y`` [m]: each
+    step from y_k at the secant velocity (y_{k+1} - y_k) / dt, so that it ends on y_{k+1} and the
+    chambers see the volume swept over the step. (At the velocity estimated at y_k the chambers'
+    replay of the model's own noise-free 200 Hz records missed them by 1-5 kPa RMS.)"""
     drive = np.full((rec.t.size - 1, kernel.N_DRIVE), np.nan)
     drive[:, kernel.DRIVE_Y] = y[:-1]
-    drive[:, kernel.DRIVE_V] = rec.v[:-1]
+    drive[:, kernel.DRIVE_V] = np.diff(y) / np.diff(rec.t)
     return drive
 
 
