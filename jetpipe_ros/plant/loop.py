@@ -1,6 +1,7 @@
 """The plant's compiled integration loop, apart from the model's kernel.
 
-Per sub-step of length h = dt / substeps (8 by default, the model integrates in 4):
+Per sub-step of length h = dt / substeps (8 a 1 ms sample, and never longer than 125 us at other
+sample times: :func:`~jetpipe_ros.plant.constants.substeps_of`; the model integrates in 4):
 
 1. the valve chain advances by Runge-Kutta steps behind the continuous delay (the sample's
    command entered the command ring), then the plays and the null offset give u_eq
