@@ -110,14 +110,14 @@ def predict(params: ModelParams, rec: Record, dt: float, mode: str = "full",
             and rec.measured("y"):
         # The unmeasured pressures, replayed from the measured motion: what restarts them.
         replayed = _run(params.at_sample_time(dt).with_values(changes), rec,
-                        _motion_drive(rec, y))
+                        _motion_drive(rec, y, dt))
         p1 = p1 if rec.measured("p1") else replayed[:, kernel.OUT_P1]
         p2 = p2 if rec.measured("p2") else replayed[:, kernel.OUT_P2]
     act = Actuator(params.at_sample_time(dt).with_values(changes))
     drive = np.full((n - 1, kernel.N_DRIVE), np.nan)
     held = np.zeros(n, dtype=bool)
     if mode == "chambers" and not rec.locked:
-        drive = _motion_drive(rec, y)
+        drive = _motion_drive(rec, y, dt)
     elif mode == "mechanics":
         # A driven step holds the pressures: at their mean over the step, so the force on the
         # piston is not half a sample late.
@@ -155,14 +155,15 @@ def _drive_to_next(drive: np.ndarray, held: np.ndarray, y: np.ndarray, v: np.nda
         drive[rows, kernel.DRIVE_P2] = p2[1:][rows]
 
 
-def _motion_drive(rec: Record, y: np.ndarray) -> np.ndarray:
+def _motion_drive(rec: Record, y: np.ndarray, dt: float) -> np.ndarray:
     """The kernel's drive that holds the piston on the measured (smoothed) motion ``y`` [m]: each
-    step from y_k at the secant velocity (y_{k+1} - y_k) / dt, so that it ends on y_{k+1} and the
-    chambers see the volume swept over the step. (At the velocity estimated at y_k the chambers'
-    replay of the model's own noise-free 200 Hz records missed them by 1-5 kPa RMS.)"""
+    step from y_k at the secant velocity (y_{k+1} - y_k) / dt (``dt`` [s], the step the kernel
+    takes), so that it ends on y_{k+1} and the chambers see the volume swept over the step. (At
+    the velocity estimated at y_k the chambers' replay of the model's own noise-free 200 Hz
+    records missed them by 1-5 kPa RMS.)"""
     drive = np.full((rec.t.size - 1, kernel.N_DRIVE), np.nan)
     drive[:, kernel.DRIVE_Y] = y[:-1]
-    drive[:, kernel.DRIVE_V] = np.diff(y) / np.diff(rec.t)
+    drive[:, kernel.DRIVE_V] = np.diff(y) / dt
     return drive
 
 
