@@ -186,3 +186,31 @@ def test_a_joint_fit_also_descends_from_the_effects_own_size(left, descends_agai
         assert starts[1][:, -size.size:] == pytest.approx(np.stack([size, size]))
         assert starts[1][0, :-size.size] == pytest.approx(CALIBRATION.start())
         assert starts[1][1, :-size.size] == pytest.approx(cal.z)
+
+
+@pytest.mark.parametrize("from_base", [False, True])
+def test_the_grid_from_a_given_base_leaves_the_effect_at_nothing_out(from_base):
+    """fit._grid_first_knob: from a given base (the refits that look for an effect's basin
+    away from the recalibration's) the first knob's grid leaves out its neutral value (a hose
+    of length 0, where a descent kept it: 1.0 % of the training gap left against 0.04 % from
+    0.31 m); from the neutral point (an effect fitted alone) the grid spans the whole range."""
+    from types import SimpleNamespace
+
+    from jetpipe_ros.diagnosis.calibration import group
+    from jetpipe_ros.diagnosis.fit import GRID, _grid_first_knob
+
+    hose = group("valve_delay:hose")
+    groups = (CALIBRATION, hose)
+    seen = []
+
+    def cost(z):  # lowest where the hose is nothing
+        seen.append(hose.knobs[0].to_value(z[len(CALIBRATION.knobs)]))
+        return seen[-1]
+
+    obj = SimpleNamespace(candidates=groups, sizes=[len(g.knobs) for g in groups], cost=cost)
+    base = np.concatenate([CALIBRATION.start(), hose.start()]) if from_base else None
+    start = _grid_first_knob(obj, base)
+    lengths = np.linspace(0.0, 2.5, GRID)
+    assert seen == pytest.approx(list(lengths[1:] if from_base else lengths))
+    assert hose.knobs[0].to_value(start[len(CALIBRATION.knobs)]) == pytest.approx(
+        lengths[1] if from_base else 0.0)

@@ -236,7 +236,16 @@ def _nuisance_fitted(obj: _Objective, z: np.ndarray) -> np.ndarray:
 def _grid_first_knob(obj: _Objective, base: np.ndarray | None = None) -> np.ndarray:
     """Start of a fit: every knob at ``base`` (default: its neutral point) but the first knob of
     the first effect, which is searched on a grid (and from each value a form-selecting knob
-    lists in ``tries``). Calibration knobs are not gridded: they start at 1, or at ``base``."""
+    lists in ``tries``). Calibration knobs are not gridded: they start at 1, or at ``base``.
+
+    From a given ``base`` (the refits that look for an effect's basin away from the
+    recalibration's, :func:`diagnose.fit_effects`) the grid leaves out the first knob's neutral
+    value: the effect at nothing has been fitted already there, and a descent that starts with
+    the effect doing nothing can stay there, its other knobs without a gradient (a 0.32 m line
+    whose hose started at length 0, the best grid point before the dead volumes moved: 1.0 %
+    of the training gap left, where from the next grid point, 0.31 m, it converged at 0.29 m
+    and 0.04 %)."""
+    acting = base is not None
     if base is None:
         base = np.concatenate([c.start() for c in obj.candidates])
     knobs = [k for c in obj.candidates for k in c.knobs]
@@ -251,9 +260,12 @@ def _grid_first_knob(obj: _Objective, base: np.ndarray | None = None) -> np.ndar
             b = base.copy()
             b[i] = k.to_unit(value)
             bases.append(b)
+    grid = np.linspace(0.0, 1.0, GRID)
+    if acting:
+        grid = grid[~np.isclose(grid, knobs[first].to_unit(knobs[first].off))]
     best, best_cost = base, np.inf
     for b in bases:
-        for g in np.linspace(0.0, 1.0, GRID):
+        for g in grid:
             z = b.copy()
             z[first] = g
             c = obj.cost(z)
