@@ -166,8 +166,9 @@ def fit(prepared: Prepared, nominal: ModelParams, candidates: Sequence[KnobGroup
     """Fit the knob groups ``candidates`` jointly on the training data, applied in order to
     ``nominal``; score on the holdout. Without ``start`` the first knob of the first effect is
     searched on a grid, the others at ``grid_base`` (unit-scaled; default: where each group
-    changes nothing); with several starts (rows of a 2-D ``start``) the fit goes on from the
-    best."""
+    changes nothing; from a given ``grid_base`` the grid leaves the first knob's neutral value
+    out, :func:`_grid_first_knob`); with several starts (rows of a 2-D ``start``) the fit goes
+    on from the best."""
     began = time.perf_counter()
     obj = _Objective(prepared, nominal, candidates, budget)
     try:

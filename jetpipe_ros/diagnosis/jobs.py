@@ -60,7 +60,9 @@ class Job:
     start: np.ndarray | None = None
     budget: int = BUDGET
     swapped: bool = False  #: fit on the holdout, judge on the training data (cross-check)
-    grid_base: np.ndarray | None = None  #: without ``start``: where the grid's other knobs sit
+    #: without ``start``: where the grid's other knobs sit (given, the grid leaves the first
+    #: knob's neutral value out: :func:`fit.fit`)
+    grid_base: np.ndarray | None = None
 
 
 def run_job(job: Job, prepared: Prepared, other: Prepared) -> Fit:
