@@ -7,7 +7,13 @@ the restart and the velocity a sample late, the mechanics were driven by the pre
 start of each step and the chambers by the velocity at its start: on the 3 V square wave the
 prediction missed by 231 um and 6.6 kPa RMS at 200 Hz (45 um and 0.9 kPa at 1 kHz), the
 mechanics by 316 um (76 um), the chambers by 5.2 kPa (1.8 kPa), and every 200 Hz diagnosis
-saw a gap of 0.2-0.9 % on a perfect model."""
+saw a gap of 0.2-0.9 % on a perfect model.
+
+Before 2026-11-26 (later) the gas temperatures of the heat-transfer form stood still while a
+warm-up held the pressures on the measurements, so every restart began from the temperature the
+previous window had ended on, not the one the warm-up's compression and heat exchange left: the
+model with that form missed its own 3 V square wave by 233 um and 5.9 kPa RMS at 1 kHz, and the
+diagnosis left 1.2 % of a wall heat exchange's gap that the form describes to 0.3 %."""
 
 import dataclasses
 
@@ -52,3 +58,29 @@ def test_the_model_replays_its_own_records_within_noise(tmp_path, rate):
         chambers = predict(ModelParams(), rec, dt, mode="chambers")
         assert max(rms(chambers.p1, rec.p1, chambers.free),
                    rms(chambers.p2, rec.p2, chambers.free)) < chamber_p, rec.name
+
+
+#: The heat-transfer form's bounds (y [m], p1 and p2 [Pa]) at both rates: measured after the
+#: change, the largest of the three experiments, 34 um and 0.91 kPa at 1 kHz, 37 um and 0.83 kPa
+#: at 200 Hz (before it 233 um and 5.9 kPa, 221 um and 6.1 kPa); the bounds are 1.4 times that.
+#: What is left beyond the isothermal model's is the gas temperature's explicit sub-steps.
+THERMAL_BOUNDS = (50e-6, 1300.0)
+
+
+@pytest.mark.parametrize("rate", sorted(BOUNDS))
+def test_a_restart_starts_from_the_gas_temperature_the_warm_up_left(tmp_path, rate):
+    """With the heat-transfer form (h A = 0.4 W/K: the gas relaxes to the wall in about 1.6 s,
+    longer than a prediction window), the gas temperatures follow the measured pressures and
+    motion while a warm-up holds them, so the model still replays its own records."""
+    dt = 1.0 / rate
+    params = ModelParams().with_effect("thermal", form="heat_transfer", heat_transfer=0.4)
+    plan = dataclasses.replace(default_campaign().select(EXPERIMENTS), sample_time=dt)
+    root = run_campaign_offline(params.with_values({"sensors.noise": False}), plan,
+                                tmp_path / "d")
+    bound_y, bound_p = THERMAL_BOUNDS
+    for rec in prepare(read_dataset(root)).records:
+        full = predict(params, rec, dt)
+        rms = {s: float(np.sqrt(np.mean((full.signal(s) - getattr(rec, s))[full.free] ** 2)))
+               for s in ("y", "p1", "p2")}
+        assert rms["y"] < bound_y, (rec.name, rms)
+        assert max(rms["p1"], rms["p2"]) < bound_p, (rec.name, rms)

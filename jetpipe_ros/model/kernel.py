@@ -39,7 +39,10 @@ the same bits.
 Subsystems can be driven instead of simulated, to judge them apart (the diagnosis) or to emulate
 test rigs: a ``drive`` array prescribes, sample by sample, the piston position and velocity
 (the chambers then see the recorded motion) and/or the chamber pressures (the mechanics then see
-the recorded pressures). With ``regulated`` the pressures stay where they are (ideal regulators).
+the recorded pressures; with the heat-transfer form the gas temperatures go on following them
+and the motion through the energy balance, so a prediction that restarts after pressures held
+on measurements starts from the gas temperature they imply). With ``regulated`` the pressures
+stay where they are (ideal regulators).
 """
 
 from __future__ import annotations
@@ -377,17 +380,19 @@ def _passage_close(c: Constants, pressurise: bool, line: bool, line_decay: float
                    v: float, p1: float, p2: float, t1: float, t2: float, p_s: float,
                    h: float) -> tuple[float, float, float, float, float]:
     """The end of a sub-step through a passage (hose, port): the chambers' new pressures
-    ``p*_new`` [Pa] and gas temperatures from the mass flows ``m*`` [kg/s] into them, unless
-    held; the supply line drained by the flows ``d*`` the valve draws [kg/s]. Returns p1, p2,
-    t1, t2, p_s."""
+    ``p*_new`` [Pa], unless held on measurements, and gas temperatures from the mass flows
+    ``m*`` [kg/s] into them, held or not (with held pressures, the temperatures follow the
+    measured pressures and motion: a restart after a warm-up then starts from the gas
+    temperature the warm-up's compression and heat exchange left); the supply line drained by
+    the flows ``d*`` the valve draws [kg/s]. Returns p1, p2, t1, t2, p_s."""
+    if c.heat_transfer > 0.0:
+        _, _, dt1, dt2 = _chamber_rates(
+            m1, m2, c.leak_cross, c.leak_atm, c.orifice_cross, c.orifice_atm,
+            c.power_cross, c.power_atm, c.leak_exponent, c.r_gas, c.t_wall, c.rt, c.area,
+            c.v01, c.v02, c.polytropic, c.heat_transfer, y, v, p1, p2, t1, t2)
+        t1 = max(t1 + h * dt1, 1.0)
+        t2 = max(t2 + h * dt2, 1.0)
     if pressurise:
-        if c.heat_transfer > 0.0:
-            _, _, dt1, dt2 = _chamber_rates(
-                m1, m2, c.leak_cross, c.leak_atm, c.orifice_cross, c.orifice_atm,
-                c.power_cross, c.power_atm, c.leak_exponent, c.r_gas, c.t_wall, c.rt, c.area,
-                c.v01, c.v02, c.polytropic, c.heat_transfer, y, v, p1, p2, t1, t2)
-            t1 = max(t1 + h * dt1, 1.0)
-            t2 = max(t2 + h * dt2, 1.0)
         p1 = max(p1_new, MIN_PRESSURE)
         p2 = max(p2_new, MIN_PRESSURE)
     if line:
@@ -636,9 +641,10 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
         p_s = x[SUPPLY] if line else c.p_supply
         f_l = f_load[k]
         # Pressures held on measurements (not by regulators): the valve still draws from the
-        # line and feeds the flow lag.
-        flows = pressurise or ((line or lagged or line_on or hose_on or port_on)
-                               and not c.regulated)
+        # line and feeds the flow lag, and the gas temperatures follow the measured pressures
+        # and motion.
+        flows = pressurise or ((line or lagged or line_on or hose_on or port_on
+                                or c.heat_transfer > 0.0) and not c.regulated)
         pp1, pp2 = x[PORT1], x[PORT2]
         slot = int(x[LINE_HEAD])
         row = old = new = first_row
@@ -703,9 +709,10 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
                     q1 = 0.0 if q1 < 0.0 and p1 <= P_ATM else q1
                     q2 = 0.0 if q2 < 0.0 and p2 <= P_ATM else q2
                     slot = slot + 1 if slot + 1 < rows else 0
-                if pressurise:
+                if pressurise or c.heat_transfer > 0.0:
                     # Chambers (Eq. 11-13): leakage, volumes, pressure (and gas temperature)
-                    # rates; explicit.
+                    # rates; explicit. Pressures held on measurements still move the gas
+                    # temperatures (_passage_close).
                     dp1, dp2, dt1, dt2 = _chamber_rates(
                         q1, q2, c.leak_cross, c.leak_atm,
                         c.orifice_cross, c.orifice_atm, c.power_cross, c.power_atm,
@@ -714,8 +721,9 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
                     if c.heat_transfer > 0.0:
                         t1 = max(t1 + h * dt1, 1.0)
                         t2 = max(t2 + h * dt2, 1.0)
-                    p1 = max(p1 + h * dp1, MIN_PRESSURE)
-                    p2 = max(p2 + h * dp2, MIN_PRESSURE)
+                    if pressurise:
+                        p1 = max(p1 + h * dp1, MIN_PRESSURE)
+                        p2 = max(p2 + h * dp2, MIN_PRESSURE)
                 if line:
                     p_s = supply_step(p_s, c.p_supply, c.line_conductance, drawn, line_decay)
             if move:
