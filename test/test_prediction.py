@@ -37,19 +37,23 @@ EXPERIMENTS = ("sweep_1p5V", "prbs_multilevel", "square_3V_0p97Hz")
 BOUNDS = {200.0: (25e-6, 500.0, 100e-6, 1500.0), 1000.0: (10e-6, 200.0, 35e-6, 1000.0)}
 
 
+def recorded(params: ModelParams, rate: float, root):
+    """The experiments recorded noise-free on ``params`` at ``rate`` [Hz], prepared."""
+    plan = dataclasses.replace(default_campaign().select(EXPERIMENTS), sample_time=1.0 / rate)
+    root = run_campaign_offline(params.with_values({"sensors.noise": False}), plan, root)
+    return prepare(read_dataset(root)).records
+
+
+def rms(predicted, measured, free):
+    """RMS of the difference over the samples ``free``."""
+    return float(np.sqrt(np.mean((predicted[free] - measured[free]) ** 2)))
+
+
 @pytest.mark.parametrize("rate", sorted(BOUNDS))
 def test_the_model_replays_its_own_records_within_noise(tmp_path, rate):
     dt = 1.0 / rate
-    plan = dataclasses.replace(default_campaign().select(EXPERIMENTS), sample_time=dt)
-    root = run_campaign_offline(ModelParams().with_values({"sensors.noise": False}), plan,
-                                tmp_path / "d")
-    prepared = prepare(read_dataset(root))
     full_y, full_p, mech_y, chamber_p = BOUNDS[rate]
-
-    def rms(predicted, measured, free):
-        return float(np.sqrt(np.mean((predicted[free] - measured[free]) ** 2)))
-
-    for rec in prepared.records:
+    for rec in recorded(ModelParams(), rate, tmp_path / "d"):
         full = predict(ModelParams(), rec, dt)
         assert rms(full.y, rec.y, full.free) < full_y, rec.name
         assert max(rms(full.p1, rec.p1, full.free), rms(full.p2, rec.p2, full.free)) < full_p
@@ -72,15 +76,10 @@ def test_a_restart_starts_from_the_gas_temperature_the_warm_up_left(tmp_path, ra
     """With the heat-transfer form (h A = 0.4 W/K: the gas relaxes to the wall in about 1.6 s,
     longer than a prediction window), the gas temperatures follow the measured pressures and
     motion while a warm-up holds them, so the model still replays its own records."""
-    dt = 1.0 / rate
     params = ModelParams().with_effect("thermal", form="heat_transfer", heat_transfer=0.4)
-    plan = dataclasses.replace(default_campaign().select(EXPERIMENTS), sample_time=dt)
-    root = run_campaign_offline(params.with_values({"sensors.noise": False}), plan,
-                                tmp_path / "d")
     bound_y, bound_p = THERMAL_BOUNDS
-    for rec in prepare(read_dataset(root)).records:
-        full = predict(params, rec, dt)
-        rms = {s: float(np.sqrt(np.mean((full.signal(s) - getattr(rec, s))[full.free] ** 2)))
-               for s in ("y", "p1", "p2")}
-        assert rms["y"] < bound_y, (rec.name, rms)
-        assert max(rms["p1"], rms["p2"]) < bound_p, (rec.name, rms)
+    for rec in recorded(params, rate, tmp_path / "d"):
+        full = predict(params, rec, 1.0 / rate)
+        misses = {s: rms(full.signal(s), getattr(rec, s), full.free) for s in ("y", "p1", "p2")}
+        assert misses["y"] < bound_y, (rec.name, misses)
+        assert max(misses["p1"], misses["p2"]) < bound_p, (rec.name, misses)
