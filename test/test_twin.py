@@ -7,7 +7,7 @@ import pytest
 
 from jetpipe_ros.model import ModelParams
 from jetpipe_ros.twin import Level, Settings, Twin
-from jetpipe_ros.twin.gap import MIN_HISTORY
+from jetpipe_ros.twin.gap import MIN_HISTORY, GapWindow, HorizonScore, bar
 from jetpipe_ros.twin.stepper import line_end
 from twin_data import hardware
 
@@ -102,6 +102,30 @@ def test_gaps_in_the_measurements_fill_pause_and_drop():
     assert c.horizons == 6 + 3
     assert {g.level for g in twin.judged} == {Level.OK}
     assert twin.paused_since is None
+
+
+def test_a_right_model_is_flagged_at_the_normal_law_s_rate_however_short_the_history():
+    """Under a right model a horizon's three scores (data, two noisy copies) are draws of one
+    law; the gap's standard error is measured on the k horizons held, so the excess over it is
+    Student t with k degrees of freedom. The bar keeps the false-alarm rate at that of 3
+    standard errors of a normal law, 0.135 %, from the first judgement (k = 5, where a flat bar
+    of 3 raises 1.5 %) to a full history."""
+    rng = np.random.default_rng(3)
+    count, trials = 1000, 20000
+    for k in (MIN_HISTORY, 12):
+        alarms = flat = 0
+        for _ in range(trials):
+            gaps = GapWindow(window=5, history=30)
+            sse = rng.chisquare(count, (k, 3)) * 1e-6  # 1 mm^2 per sample: a 1 mm noise
+            for a, b, c in sse:
+                gaps.add("y", HorizonScore(a, b, c, count, count, 0.0, count * 1e-4))
+            (g,) = gaps.judge()
+            alarms += g.z >= g.bar
+            flat += g.z >= 3.0
+        # 27 alarms expected (binomial sd 5); a flat bar of 3: 300 at k = 5, 150 at k = 12.
+        assert 10 <= alarms <= 50, (k, alarms)
+        assert flat > 100, (k, flat)
+    assert bar(5) == pytest.approx(5.51, abs=0.01) and bar(30) == pytest.approx(3.27, abs=0.01)
 
 
 def test_bad_settings_name_the_setting():

@@ -290,6 +290,7 @@ class GapMonitor(Node):
             values[f"{g.signal} gap [%]"] = f"{g.gap:.3f}"
             values[f"{g.signal} level"] = g.level.name
             values[f"{g.signal} z"] = f"{g.z:.2f}" if math.isfinite(g.z) else "inf"
+            values[f"{g.signal} z bar"] = f"{g.bar:.2f}"
             values[f"{g.signal} model nrmse [%]"] = f"{100 * math.sqrt(g.mse):.3f}"
             values[f"{g.signal} noise nrmse [%]"] = f"{100 * math.sqrt(g.floor):.3f}"
         values.update({"samples": str(c.samples), "samples filled (lost)": str(c.filled),

@@ -19,11 +19,17 @@ how far a perfect model's window score strays from the floor.
 standard error under "the model is right" (``se``: the measured spread above, scaled from one
 horizon to the window). The two tests are the diagnosis' own for a gap beyond noise
 (:func:`jetpipe_ros.diagnosis.verdict.left_beyond_noise`), with the paired t-test over windows
-replaced by this z-score, whose spread is measured over a longer history than the window (the
-standard error also holds the floor's own uncertainty, from that of the measured noise):
+replaced by this ratio ``t = e / se``, whose spread is measured over a longer history than the
+window (the standard error also holds the floor's own uncertainty, from that of the measured
+noise). The spread is *estimated* from the k horizons of the history, so under a right model
+``t`` follows Student's t with k degrees of freedom, not a normal law: its bar is the t quantile
+with the false-alarm rate of :data:`~jetpipe_ros.diagnosis.verdict.MIN_T` standard errors of a
+normal law (0.13 % of windows), :func:`bar`: 5.5 at the first judgement (k = 5), 4.0 at k = 10,
+3.3 with the default 30 s history. (A flat bar of 3 raised false alarms in 1.5 % of windows at
+k = 5 and 0.3 % at k = 30, and a nominal twin beside nominal hardware went WARN on a loaded
+machine at t = 4.1 with 7 horizons.)
 
-- WARN: ``e / se >= 3`` (:data:`~jetpipe_ros.diagnosis.verdict.MIN_T`; a right model with
-  normal scores exceeds it in about 0.13 % of windows) and the gap at least
+- WARN: ``t >= bar(k)`` and the gap at least
   :data:`~jetpipe_ros.diagnosis.verdict.NOISE_GAP` (0.5 % of the signal's spread, the least gap
   the diagnosis counts: about twice the pressure sensors' noise);
 - ERROR: both, and the error beyond noise at least as large as the noise floor itself (the
@@ -43,6 +49,7 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 
 import numpy as np
+from scipy import stats
 
 from jetpipe_ros.diagnosis.data import MIN_SCALE, SIGNALS
 from jetpipe_ros.diagnosis.verdict import MIN_T, NOISE_GAP
@@ -86,6 +93,7 @@ class SignalGap:
     mse: float  #: normalised mean square error of the model
     floor: float  #: normalised mean square error noise alone explains
     z: float  #: excess over its standard error under a right model
+    bar: float  #: the z at which the gap counts (:func:`bar` of the history's horizons)
     level: Level
     horizons: int  #: horizons in the window
     scale: float  #: normalisation scale [m or Pa]
@@ -93,7 +101,8 @@ class SignalGap:
     def describe(self) -> str:
         """One line for a person."""
         return (f"{self.signal}: gap {self.gap:.2f} % (model {100 * math.sqrt(self.mse):.2f} %, "
-                f"noise {100 * math.sqrt(self.floor):.2f} %, z {self.z:.1f}) {self.level.name}")
+                f"noise {100 * math.sqrt(self.floor):.2f} %, z {self.z:.1f} of {self.bar:.1f}) "
+                f"{self.level.name}")
 
 
 @dataclass
@@ -136,9 +145,17 @@ class GapWindow:
         z = excess / se if se > 0.0 else (math.inf if excess > 0.0 else 0.0)
         gap = 100.0 * math.sqrt(max(excess, 0.0))
         level = Level.OK
-        if z >= MIN_T and gap >= NOISE_GAP:
+        limit = bar(len(hist))
+        if z >= limit and gap >= NOISE_GAP:
             level = Level.ERROR if excess >= floor else Level.WARN
-        return SignalGap(signal, gap, mse, floor, z, level, len(win), math.sqrt(scale2))
+        return SignalGap(signal, gap, mse, floor, z, limit, level, len(win), math.sqrt(scale2))
+
+
+def bar(history: int) -> float:
+    """The excess' bar in standard errors when its spread is measured on ``history``
+    horizons: the Student t quantile (``history`` degrees of freedom) whose one-sided tail
+    equals that of a normal law beyond :data:`~jetpipe_ros.diagnosis.verdict.MIN_T`."""
+    return float(stats.t.isf(stats.norm.sf(MIN_T), history))
 
 
 def _standard_error(hist: Sequence[HorizonScore], win: Sequence[HorizonScore],
