@@ -19,8 +19,10 @@ WANT=$(cat requirements.txt "$ROS_REQ" setup.py | sha256sum | cut -d' ' -f1)
 # Two stages: the tests that are pure computation on every core (pytest-xdist), then the tests
 # that talk ROS one at a time (their nodes keep their 1 kHz pace and time-outs on a quiet
 # machine). Arguments go to both; a stage that selects nothing (pytest exit 5) is not a failure.
+# --dist loadgroup: a module whose fixtures are costly (a campaign simulated, a diagnosis) marks
+# itself xdist_group and runs on one worker, so they are built once, not once per worker.
 status=0
-"$VENV/bin/python" -m pytest test -q --durations=15 -m "not ros" -n "${TEST_JOBS:-auto}" \
+"$VENV/bin/python" -m pytest test -q --durations=15 -m "not ros" -n "${TEST_JOBS:-auto}" --dist loadgroup \
   "$@" || status=$?
 [ "$status" -eq 5 ] && status=0
 ros=0

@@ -87,6 +87,11 @@ def test_words_and_bounds():
     assert at_bound(full) == ["valve_gain"]
 
 
+#: The module fixtures below are costly: every test of this module runs on one test worker
+#: (``scripts/test.sh`` distributes with ``--dist loadgroup``), so they are built once.
+pytestmark = pytest.mark.xdist_group("test_calibration")
+
+
 @pytest.fixture(scope="module")
 def off_bench(tmp_path_factory):
     """The small campaign on a bench whose flow map is 10 % weaker (both directions) and whose

@@ -129,6 +129,11 @@ def test_bad_plan_file_is_named(tmp_path):
         load_campaign(tmp_path / "missing.yaml")
 
 
+#: The module fixtures below are costly: every test of this module runs on one test worker
+#: (``scripts/test.sh`` distributes with ``--dist loadgroup``), so they are built once.
+pytestmark = pytest.mark.xdist_group("test_campaign")
+
+
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
     params = ModelParams().with_values({"sensors.noise": True})

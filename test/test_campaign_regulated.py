@@ -105,6 +105,11 @@ def test_offline_friction_test_follows_newtons_law(tmp_path):
         assert abs(exp.y[-1] - exp.y[0]) == pytest.approx(0.05)  # slid stop to stop
 
 
+#: The module fixtures below are costly: every test of this module runs on one test worker
+#: (``scripts/test.sh`` distributes with ``--dist loadgroup``), so they are built once.
+pytestmark = pytest.mark.xdist_group("test_campaign_regulated")
+
+
 @pytest.fixture(scope="module")
 def identified(tmp_path_factory):
     """Identified from a start that is off: flow map and friction planes scaled by 1.2, 1.3."""

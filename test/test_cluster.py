@@ -21,6 +21,11 @@ from jetpipe_ros.model import ModelParams
 from test_diagnosis import make_dataset
 
 
+#: The module fixtures below are costly: every test of this module runs on one test worker
+#: (``scripts/test.sh`` distributes with ``--dist loadgroup``), so they are built once.
+pytestmark = pytest.mark.xdist_group("test_cluster")
+
+
 @pytest.fixture(scope="module")
 def scheduler():
     """A running cluster of two single-threaded worker processes, reached by its address as a

@@ -13,6 +13,11 @@ from jetpipe_ros.model import ModelParams
 from jetpipe_ros.plant.logger import P_ATM_LOGGER, log
 
 
+#: The module fixtures below are costly: every test of this module runs on one test worker
+#: (``scripts/test.sh`` distributes with ``--dist loadgroup``), so they are built once.
+pytestmark = pytest.mark.xdist_group("test_dataset_units")
+
+
 @pytest.fixture(scope="module")
 def clean(tmp_path_factory):
     """One experiment of the default campaign, recorded with sensor noise, in SI."""

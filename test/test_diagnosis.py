@@ -65,6 +65,11 @@ def assert_schema(path):
 # refusals of bad input come before any fit, where a cluster would only be started to be
 # closed. This fixture keeps 2 local workers: a local cluster started, the fits spread over it,
 # the cluster closed, stay tested.
+#: The module fixtures below are costly: every test of this module runs on one test worker
+#: (``scripts/test.sh`` distributes with ``--dist loadgroup``), so they are built once.
+pytestmark = pytest.mark.xdist_group("test_diagnosis")
+
+
 @pytest.fixture(scope="module")
 def lag_result(tmp_path_factory):
     root = tmp_path_factory.mktemp("lag")

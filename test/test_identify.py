@@ -55,6 +55,11 @@ def _plane_errors(ident: ModelParams, tests, phase: str) -> dict[str, tuple[floa
     return out
 
 
+#: The module fixtures below are costly: every test of this module runs on one test worker
+#: (``scripts/test.sh`` distributes with ``--dist loadgroup``), so they are built once.
+pytestmark = pytest.mark.xdist_group("test_identify")
+
+
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
     root = tmp_path_factory.mktemp("id") / "paper"

@@ -70,6 +70,11 @@ def relog(root: Path, rows: int = 0, lose: float = 0.0, jitter: float = 0.0,
     return lost_total
 
 
+#: The module fixtures below are costly: every test of this module runs on one test worker
+#: (``scripts/test.sh`` distributes with ``--dist loadgroup``), so they are built once.
+pytestmark = pytest.mark.xdist_group("test_real_logs")
+
+
 @pytest.fixture(scope="module")
 def nominal_record(tmp_path_factory):
     return record(tmp_path_factory.mktemp("nominal") / "data", ModelParams())
