@@ -233,9 +233,9 @@ def fit_pairs(fitter: Fitter, nominal: ModelParams, best: Fit, singles: Mapping[
                                                effect_of(e) not in base.effect_names
                                                and not _fitted(pairs, (second, e))], progress)
     reduced = [(f, off) for f in pairs if (off := vanished(f))]
-    if pairs:
-        top = min(pairs, key=lambda f: f.train.total)
-        reduced += [(top, [g]) for g in top.effects if (top, [g]) not in reduced]
+    top = min(pairs, key=lambda f: f.train.total, default=None)
+    if top is not None and not vanished(top):  # (a vanished member's partner is refitted above)
+        reduced += [(top, [g]) for g in top.effects]
     if not reduced:
         return pairs, []
     gone = [f"{' and '.join(off)} left out of {f.name}" for f, off in reduced]
