@@ -102,6 +102,10 @@ def test_stand_in_words_say_what_to_do():
                                      "designed": False, "difference_over_noise": 5.6}}
     text = words(row)
     assert "cannot tell them apart" in text and "'role: holdout'" in text
+    # Already held out, the experiment is not to be marked so again: a longer run of it is.
+    row["separating_experiment"] = {**row["separating_experiment"], "held_out": True}
+    text = words(row)
+    assert "'role: holdout'" not in text and "longer or repeated held-out run" in text
     row["separating_experiment"] = {**row["separating_experiment"], "in_dataset": False,
                                     "designed": True, "experiment": "presliding_triangle"}
     assert "recording the experiment 'presliding_triangle' (designed for this" in words(row)

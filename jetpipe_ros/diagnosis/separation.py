@@ -125,7 +125,8 @@ def separating_experiment(a: ModelParams, b: ModelParams, prepared: Prepared) ->
         d = np.mean([np.mean(((pa.signal(s) - pb.signal(s)) / noise[s])[pa.free] ** 2)
                      for s in rec.signals()])
         menu.append({"experiment": rec.name, "piston": rec.entry.piston, "in_dataset": True,
-                     "designed": False, "difference_over_noise": float(np.sqrt(d))})
+                     "held_out": not rec.train.any(), "designed": False,
+                     "difference_over_noise": float(np.sqrt(d))})
     have = {r.name for r in prepared.records}
     specs = [(exp, False) for exp in default_campaign().experiments
              if not exp.closed_loop and exp.name not in have]
@@ -281,6 +282,10 @@ def words(row: Mapping) -> str:
         return text
     apart = (f"their predictions differ most there, {sep['difference_over_noise']:.1f} x the "
              f"sensor noise")
+    if sep["in_dataset"] and sep.get("held_out"):
+        return text + (f"; they differ most in the held-out experiment '{sep['experiment']}' "
+                       f"({apart}), not enough to decide: a longer or repeated held-out run of "
+                       f"it would add the evidence")
     if sep["in_dataset"]:
         return text + (f"; the experiment '{sep['experiment']}' of this dataset, held out, "
                        f"could ({apart}): mark it 'role: holdout' in dataset.yaml and diagnose "
