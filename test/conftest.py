@@ -11,6 +11,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from threadpoolctl import threadpool_limits
 
 from jetpipe_ros.children import die_with_parent
 from jetpipe_ros.nodes.domain import reserve_domain
@@ -24,6 +25,17 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if "ros_domain" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.ros)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def one_blas_thread() -> Iterator[None]:
+    """One BLAS thread in the test processes, as the tools run (:mod:`jetpipe_ros.cli`): a test
+    that calls the diagnosis's parts directly would otherwise run their small matrices on a
+    spinning thread pool beside the other test worker (a placement: 76-78 s against 15-17 s).
+    Set when the first test starts, after collection has loaded every BLAS library (a limit
+    reaches only the libraries loaded when it is set)."""
+    with threadpool_limits(1):
+        yield
 
 
 def pytest_configure(config: pytest.Config) -> None:
