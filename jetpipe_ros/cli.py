@@ -11,8 +11,8 @@ Every command runs with one BLAS thread (:func:`threadpoolctl.threadpool_limits`
 linear algebra is on small matrices (a filter's discretisation, a few knobs' least squares),
 where a pool of threads only spins and takes the cores the numba kernels and worker processes
 need. Measured on a 2-core machine with another job running: the placement of an unlisted
-cause (:mod:`jetpipe_ros.diagnosis.placement`) 84 s with the default pool, 18 s with one thread
-(scipy's matrix exponential alone 32 s of the 84).
+cause (:mod:`jetpipe_ros.diagnosis.placement`) 76-78 s with the default pool, 15-17 s with one
+thread (profiled, scipy's matrix exponential alone took 32 s of 84).
 """
 
 from __future__ import annotations
