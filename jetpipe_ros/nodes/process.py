@@ -138,20 +138,12 @@ def run_nodes(name: str, args: Sequence[str] | None,
     a :class:`StartupError`), adds them to ``executor(nodes)`` and runs
     ``work(nodes, executor, stop)`` for the status, or by default spins until stopped (0).
     ``finish(nodes)`` runs once all were built, however the run ends; every node built is
-    destroyed. The process runs with one BLAS thread, as the ``jetpipe`` commands do
-    (:mod:`jetpipe_ros.cli`): its matrices are small (a valve's discretisation on a parameter
-    change, the gap monitor's predictions), and a thread pool would spin beside the 1 kHz loop.
+    destroyed. The executable runs with one BLAS thread from here on, as the ``jetpipe``
+    commands do (:mod:`jetpipe_ros.cli`): its matrices are small (a valve's discretisation on a
+    parameter change, the gap monitor's predictions), and a thread pool would spin beside the
+    1 kHz loop.
     """
-    with threadpool_limits(1):
-        return _run_nodes(name, args, builders, executor, work, finish)
-
-
-def _run_nodes(name: str, args: Sequence[str] | None,
-               builders: Sequence[tuple[str, Callable[[], Node]]],
-               executor: Callable[[list[Node]], Any],
-               work: Callable[[list[Node], Any, Stop], int] | None,
-               finish: Callable[[list[Node]], None]) -> int:
-    """:func:`run_nodes`'s body, run under its BLAS limit."""
+    threadpool_limits(1)
     stop = start(name, args)
     if stop is None:
         return 2
