@@ -7,8 +7,9 @@ import pytest
 
 from jetpipe_ros.campaign import default_campaign, run_campaign_offline
 from jetpipe_ros.dataset import read_dataset
-from jetpipe_ros.diagnosis.data import prepare
-from jetpipe_ros.diagnosis.noise_floor import calibrate
+from jetpipe_ros.diagnosis import residuals
+from jetpipe_ros.diagnosis.data import Prepared, prepare
+from jetpipe_ros.diagnosis.noise_floor import calibrate, twin
 from jetpipe_ros.diagnosis.placement import PLACES, place
 from jetpipe_ros.model import ModelParams
 from jetpipe_ros.plant import Plant, PlantSpec
@@ -18,15 +19,20 @@ EXPERIMENTS = ("charge_2p86V", "valve_sweep_1V", "sweep_1p5V", "prbs_multilevel"
                "square_3V_0p97Hz", "sweep_0p8V", "stick_slip_holdout")
 
 
-def placed(root: Path, effect: str, **values: float) -> dict:
+def recorded(root: Path, effect: str, **values: float) -> Prepared:
     """The short campaign recorded with sensor noise on the nominal plant with one real
-    ``effect``, placed against the nominal model."""
+    ``effect``, prepared with its noise floor against the nominal model."""
     spec = PlantSpec().with_values({"sensors.noise": True}).with_effect(effect, **values)
     run_campaign_offline(spec.params, default_campaign().select(EXPERIMENTS), root, seed=3,
                          actuator=lambda p: Plant(spec.with_params(p)))
     prepared = prepare(read_dataset(root))
     prepared.floor, prepared.floor_windows = calibrate(prepared, ModelParams())
-    return place(prepared, ModelParams())
+    return prepared
+
+
+def placed(root: Path, effect: str, **values: float) -> dict:
+    """:func:`recorded`, placed against the nominal model."""
+    return place(recorded(root, effect, **values), ModelParams())
 
 
 def experiment(found: dict, signal: str) -> dict:
@@ -58,11 +64,20 @@ def test_a_valve_null_offset_is_placed_in_the_valve(tmp_path):
 def test_a_force_that_depends_on_position_is_placed_in_the_mechanics(tmp_path):
     """A 10 kN/m load spring: no one signal explains it; the valve and chambers fed the
     measured motion miss by little, the piston driven by the measured pressures by far more."""
-    found = placed(tmp_path, "load_spring", stiffness=1e4)
+    prepared = recorded(tmp_path, "load_spring", stiffness=1e4)
+    found = place(prepared, ModelParams())
     assert found["subsystem"] == "mechanics"
     assert max(e["removed"] for e in found["experiments"]) < PLACES
     replays = found["replays"]
     assert replays["mechanics"]["gap"] > 5 * replays["valve_and_chambers"]["gap"]
+    # Its shape, in the force balance's error: a force proportional to the position, at the
+    # spring's stiffness (the term's coefficient is the error per metre: -k, the model lacking
+    # the spring's pull back), not the end stops' cushioning.
+    shape, _ = residuals.locate(prepared, twin(prepared, ModelParams()), ModelParams(),
+                                ModelParams()["mechanics.stroke"])
+    top = shape["missing"]["terms"][0]
+    assert shape["missing"]["equation"] == "force balance" and top["term"] == "spring"
+    assert top["coefficient"] == pytest.approx(-1e4, rel=0.2)
 
 
 @pytest.mark.parametrize("effect, values, subsystem", [

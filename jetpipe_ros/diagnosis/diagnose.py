@@ -432,7 +432,8 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
                 (b,) = fitter.run([Job(nominal, w.effects, w.z[len(cal.z):], JOINT_BUDGET)])
             (given,) = rank([w], b.holdout, b.holdout_windows, dt)
             (effect_alone,) = rank([b], nom_hold, nom_windows, dt)
-        settled = settle(cal_row, on_cal_verdict, alone_verdict, given, effect_alone)
+        settled = settle(cal_row, on_cal_verdict, alone_verdict, given, effect_alone,
+                         floor)
         progress("scoring the augmented model; standard errors of its parameters")
         final = settled.final
         errors = uncertainty(prepared, nominal, final) if final is not None else {}

@@ -214,6 +214,7 @@ def _force_terms(y: np.ndarray, v: np.ndarray, a: np.ndarray, dp: np.ndarray, ar
         Term("pneumatic scale", "a force proportional to the pressure difference (area)",
              "mechanics", area * dp),
         Term("inertia", "a force proportional to the acceleration (mass)", "mechanics", a),
+        Term("spring", "a force proportional to the position (a spring)", "mechanics", y),
         Term("end-stop spring", "a force that grows in the last 3 mm of stroke (cushioning)",
              "mechanics", zone),
         Term("end-stop damping", "a force against the motion in the last 3 mm of stroke",
