@@ -371,8 +371,9 @@ def settle(calibration: Ranked, on_cal: Verdict, alone: Verdict, given: Ranked |
       criterion is kept, the other reported; but when both leave a gap beyond noise
       (``floor_windows``: the noise floor's held-out window errors), neither reading is the
       cause: the effect does what mis-set parameters also do, which real hardware always has,
-      and what both leave is a cause on no list, ``unlisted`` (seed 5347's load spring, a force on no list, was named a supply restriction
-      of zero volume that left 2.34 % of a 6.41 % gap where the recalibration left 3.48 %);
+      and what both leave is a cause on no list, ``unlisted`` (seed 5347's load spring, a force
+      on no list, was named a supply restriction of zero volume that left 2.34 % of a 6.41 %
+      gap where the recalibration left 3.48 %);
     - with neither, an effect that explains the nominal gap alone is the answer;
     - with no effect in the end, a gap beyond noise that remains is ``unlisted``: its cause is
       on no list (nor a mis-set parameter).
@@ -433,7 +434,6 @@ def settle(calibration: Ranked, on_cal: Verdict, alone: Verdict, given: Ranked |
                 reason += (f"; {alt.fit.name} alone, instead of the recalibration, leaves "
                            f"{alt.fit.holdout.gap:.2f} %, beyond noise too: it does what "
                            f"mis-set parameters do, not what is left")
-                return Settled(calibration.fit, True, on_cal, reason, unlisted=True)
             return Settled(calibration.fit, True, on_cal, reason, unlisted=True)
         reason = (f"no unmodelled effect: the nominal parameters are off ({cal_words}); "
                   f"recalibrated, the held-out gap shrinks from {calibration.base_gap:.2f} % "
