@@ -71,13 +71,13 @@ def test_a_force_that_depends_on_position_is_placed_in_the_mechanics(tmp_path):
     replays = found["replays"]
     assert replays["mechanics"]["gap"] > 5 * replays["valve_and_chambers"]["gap"]
     # Its shape, in the force balance's error: a force proportional to the position, at the
-    # spring's stiffness (the term's coefficient is the error per metre: -k, the model lacking
-    # the spring's pull back), not the end stops' cushioning.
+    # spring's stiffness within 10 % (the term's coefficient is the error per metre: -k, the
+    # model lacking the spring's pull back), not the end stops' cushioning.
     shape, _ = residuals.locate(prepared, twin(prepared, ModelParams()), ModelParams(),
                                 ModelParams()["mechanics.stroke"])
     top = shape["missing"]["terms"][0]
     assert shape["missing"]["equation"] == "force balance" and top["term"] == "spring"
-    assert top["coefficient"] == pytest.approx(-1e4, rel=0.2)
+    assert top["coefficient"] == pytest.approx(-1e4, rel=0.1)  # -1.035e4 found
 
 
 @pytest.mark.parametrize("effect, values, subsystem", [
