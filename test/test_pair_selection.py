@@ -1,8 +1,6 @@
 """Which pairs the diagnosis fits (:func:`diagnose.fit_pairs`), on a fitter whose training
 errors come from a table (no model is simulated)."""
 
-import sys
-
 import numpy as np
 import pytest
 
@@ -75,7 +73,7 @@ def test_pairs_float_from_the_second_member_of_each_pair():
     assert len(set(got)) == len(got), "a pair fitted twice"
     # Forward selection from the best single: its POOL best pairs, refitted jointly.
     assert got[:POOL] == [frozenset({"sensor_dynamics", "valve_delay"}),
-                               frozenset({"sensor_dynamics", "valve_lag:first_order"})]
+                          frozenset({"sensor_dynamics", "valve_lag:first_order"})]
     # Then from the delay and from the lag, the stand-in left out: the truth is fitted.
     assert frozenset({"valve_delay", "leakage:laminar"}) in got
     assert frozenset({"valve_lag:first_order", "leakage:laminar"}) in got
@@ -157,7 +155,7 @@ def test_the_pool_holds_distinct_effects_not_two_forms_of_one(monkeypatch):
                          lambda message: None)
     got = [frozenset(p.effects) for p in pairs]
     assert got[:POOL] == [frozenset({"sensor_dynamics", "valve_lag:second_order"}),
-                               frozenset({"sensor_dynamics", "valve_delay"})]
+                          frozenset({"sensor_dynamics", "valve_delay"})]
     assert frozenset({"valve_delay", "leakage:laminar"}) in got
 
 
@@ -165,6 +163,8 @@ def test_a_second_effect_that_shows_less_on_top_than_jointly_is_in_the_pool(monk
     """Seed 1213's delay beside a weak leak: on top of the delay (held where it was fitted
     alone, its knobs having taken part of the leak's work) the leak comes third, after a
     sensor's gain and a lower supply; jointly it is the truth. The default pool reaches it."""
+    import test_pair_selection as table
+
     monkeypatch.setattr(diagnose, "PAIR_POOL", PAIR_POOL)
     truth = frozenset({"valve_delay", "leakage:laminar"})
 
@@ -178,7 +178,7 @@ def test_a_second_effect_that_shows_less_on_top_than_jointly_is_in_the_pool(monk
     fitter = Held()
     singles = {e: fitter.fit((CAL, e)) for e in NAMES}
     on_delay = {("sensor_dynamics", "valve_delay"): 0.3, ("supply_pressure", "valve_delay"): 0.35}
-    monkeypatch.setattr(sys.modules[__name__], "ERRORS", {**ERRORS, **on_delay})
+    monkeypatch.setattr(table, "ERRORS", {**ERRORS, **on_delay})
     pairs, _ = fit_pairs(fitter, object(), singles["valve_delay"], singles, NAMES,
                          lambda message: None)
     assert truth in [frozenset(p.effects) for p in pairs]
