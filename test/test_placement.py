@@ -13,18 +13,22 @@ from jetpipe_ros.diagnosis.noise_floor import calibrate, twin
 from jetpipe_ros.diagnosis.placement import PLACES, place
 from jetpipe_ros.model import ModelParams
 from jetpipe_ros.plant import Plant, PlantSpec
+from jetpipe_ros.plant.logger import log
 
 #: A short campaign with locked, open-loop and closed-loop experiments, three held out.
 EXPERIMENTS = ("charge_2p86V", "valve_sweep_1V", "sweep_1p5V", "prbs_multilevel", "stick_slip",
                "square_3V_0p97Hz", "sweep_0p8V", "stick_slip_holdout")
 
 
-def recorded(root: Path, effect: str, **values: float) -> Prepared:
+def recorded(root: Path, effect: str, logger: str | None = None, **values: float) -> Prepared:
     """The short campaign recorded with sensor noise on the nominal plant with one real
-    ``effect``, prepared with its noise floor against the nominal model."""
+    ``effect`` (rewritten by ``logger``, :data:`jetpipe_ros.plant.logger.LOGGERS`), prepared
+    with its noise floor against the nominal model."""
     spec = PlantSpec().with_values({"sensors.noise": True}).with_effect(effect, **values)
     run_campaign_offline(spec.params, default_campaign().select(EXPERIMENTS), root, seed=3,
                          actuator=lambda p: Plant(spec.with_params(p)))
+    if logger:
+        log(logger, root, 4)
     prepared = prepare(read_dataset(root))
     prepared.floor, prepared.floor_windows = calibrate(prepared, ModelParams())
     return prepared
@@ -78,6 +82,26 @@ def test_a_force_that_depends_on_position_is_placed_in_the_mechanics(tmp_path):
     top = shape["missing"]["terms"][0]
     assert shape["missing"]["equation"] == "force balance" and top["term"] == "spring"
     assert top["coefficient"] == pytest.approx(-1e4, rel=0.1)  # -1.035e4 found
+
+
+def test_with_the_position_alone_the_candidates_place_it(tmp_path):
+    """The load spring with the position alone: neither subsystem replays apart (the chambers
+    have no pressure to be compared with, the piston none to be driven by), and no one signal
+    explains it, so the candidates that explain part of the gap place it, the largest share
+    first, and say so. With no candidate explaining any of it, nothing places it: said, not
+    guessed (the chamber was the answer by default before)."""
+    prepared = recorded(tmp_path, "load_spring", "position_only", stiffness=1e4)
+    leads = [("valve_lag:first_order", "valve", 0.35), ("friction_dynamics:lugre", "mechanics",
+                                                          0.6)]
+    found = place(prepared, ModelParams(), leads)
+    replays = found["replays"]
+    assert replays["mechanics"] is None
+    assert not {"p1", "p2"} & set(replays["valve_and_chambers"])
+    assert max(e["removed"] for e in found["experiments"]) < PLACES
+    assert found["subsystem"] == "mechanics"
+    assert found["placed_by"] == "friction_dynamics:lugre" and "60 %" in found["words"]
+    unplaced = place(prepared, ModelParams())
+    assert unplaced["subsystem"] == "none" and "cannot place it" in unplaced["words"]
 
 
 @pytest.mark.parametrize("effect, values, subsystem", [

@@ -479,7 +479,7 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
     }
     if settled.unlisted or not fits:
         progress("placing the gap: experiments that hold one subsystem or one signal")
-        localization["placement"] = place(prepared, augmented)
+        localization["placement"] = place(prepared, augmented, _leads(ranking))
     verdict = settled.verdict
     separating = None
     if settled.alternative is not None:
@@ -616,6 +616,18 @@ def _calibration_json(cal: Fit, cal_row: Ranked, settled: Settled, nom_hold) -> 
     }
 
 
+def _leads(ranking: Sequence[Ranked]) -> list[tuple[str, str, float]]:
+    """The candidates on top of the recalibration that explain part of its gap, with the one
+    subsystem they act in and the share they remove (pairs across subsystems left out):
+    where no replay can judge, the placement's evidence (:func:`placement.place`)."""
+    out = []
+    for r in ranking:
+        where = set(EFFECTS[e] for e in r.fit.effect_names)
+        if r.explains and len(where) == 1:
+            out.append((r.fit.name, where.pop(), r.shrinkage))
+    return out
+
+
 def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
             ranking: Sequence[Ranked], alone_ranking: Sequence[Ranked], cal: Fit,
             cal_row: Ranked, nom_hold, aug_hold, localization: dict, seen: dict[str, float],
@@ -633,7 +645,8 @@ def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
                 row["preferred"] == "effect" and row["candidate"] != settled.final.name):
             reason += f"; {words(row)}"
     if settled.unlisted:
-        reason += (f"; it starts in the {subsystem}: {localization['placement']['words']}; "
+        where = "it cannot be placed" if subsystem == "none" else f"it starts in the {subsystem}"
+        reason += (f"; {where}: {localization['placement']['words']}; "
                    f"{residuals.describe(localization['equations'])}")
     verdict_json = {
         "effect": win.fit.effect if win else "unlisted" if settled.unlisted else "none",

@@ -33,7 +33,15 @@ changing one thing and asking how much of the held-out gap goes:
   gap, the valve holds the cause (a static function of command and pressure: a null or gain
   that moves with pressure);
   when it does not, the chambers do (what the gas does beyond a flow that depends on them:
-  heat, leaks across the piston, volumes in motion).
+  heat, leaks across the piston, volumes in motion);
+- **fewer sensors**: the mechanics replays only with both pressures measured, the chambers
+  only against a measured pressure. Without the mechanics' replay, a chambers' replay gap
+  beyond noise still places the cause in the valve and chambers; when the chambers reproduce
+  the pressure measured to within noise, or no pressure is measured at all (the position
+  alone), no replay can judge, and the candidate that explains the largest share of the gap
+  (on top of the recalibration, significantly) places it where it acts, said as such; with no
+  candidate explaining any of it, the answer is that these records cannot place it
+  (subsystem ``none``), not a default.
 
 A one-signal experiment places the cause when it removes at least half of the held-out gap
 beyond noise: more than all else together, so the signal it changes is where the gap starts. A
@@ -55,6 +63,7 @@ from jetpipe_ros.diagnosis.calibration import CALIBRATION
 from jetpipe_ros.diagnosis.data import SIGNALS, Prepared, Record
 from jetpipe_ros.diagnosis.prediction import Prediction, predict
 from jetpipe_ros.diagnosis.score import predict_all, score
+from jetpipe_ros.diagnosis.verdict import NOISE_GAP
 from jetpipe_ros.model import ModelParams
 from jetpipe_ros.model.flow import flow_matrix
 
@@ -280,9 +289,26 @@ def _null(prepared: Prepared, params: ModelParams) -> dict:
     return {"subsystem": "valve", "signal": "u", "null_offset_v": u0, "holdout_gap": gap}
 
 
-def place(prepared: Prepared, params: ModelParams) -> dict:
+def _by_candidates(leads: Sequence[tuple[str, str, float]], words: str) -> dict:
+    """The subsystem of the candidate that removes the largest share of the gap, of ``leads``
+    (candidate, its subsystem, held-out share removed; only those that explain part of the
+    gap), placed so when no replay can judge; "none" when no candidate explains any of it."""
+    if not leads:
+        return {"subsystem": "none", "words": words + "; no candidate explains part of it: "
+                "these records cannot place it"}
+    name, subsystem, share = max(leads, key=lambda lead: lead[2])
+    return {"subsystem": subsystem, "placed_by": name,
+            "words": words + f"; of the candidates, {name} explains most of it "
+                             f"({100 * share:.0f} %), so it is placed where that one acts"}
+
+
+def place(prepared: Prepared, params: ModelParams,
+          leads: Sequence[tuple[str, str, float]] = ()) -> dict:
     """Where the gap of ``params`` on the held-out data starts (module docstring): the
-    subsystem, in words why, and every experiment's held-out gap and share removed."""
+    subsystem, in words why, and every experiment's held-out gap and share removed.
+    ``leads`` are the candidates that explain part of the gap (name, subsystem, held-out
+    share removed): where the records hold too few signals for any replay to judge, the
+    largest of them places it."""
     base = score(prepared, predict_all(params, prepared, None), "holdout")
     # What the same refit of the knobs leaves without any experiment: the bar each one is
     # judged against, so that no experiment gets credit for what the knobs alone remove.
@@ -309,8 +335,15 @@ def place(prepared: Prepared, params: ModelParams) -> dict:
              f"{100 * best['removed']:.0f} %)")
     chambers = replays["valve_and_chambers"]["gap"]
     if replays["mechanics"] is None:
-        subsystem = "valve+chamber"
         words += "; the mechanics cannot be replayed apart (it needs both pressures measured)"
+        measured = any(s in replays["valve_and_chambers"] for s in ("p1", "p2"))
+        if measured and chambers >= NOISE_GAP:
+            subsystem = "valve+chamber"
+        else:
+            words += (f"; the valve and chambers replayed on the measured motion miss the "
+                      f"measured pressure by {chambers:.2f} %, within noise" if measured else
+                      "; nor can the chambers (no chamber pressure is measured)")
+            return {**out, **_by_candidates(leads, words)}
     else:
         mechanics = replays["mechanics"]["gap"]
         subsystem = "mechanics" if mechanics > chambers else "valve+chamber"
