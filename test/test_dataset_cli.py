@@ -41,7 +41,7 @@ def test_simulate_locked_and_with_params(tmp_path):
 @pytest.mark.parametrize(("header", "rows", "message"), [
     ("t,volts", [(0, 1), (0.001, 1)], "missing column(s) u"),
     ("t,u", [(0, 1), (0.001, "x")], "line 3, column 'u': not a number"),
-    ("t,u", [(0, 1), (0.001, "nan")], "line 3, column 'u': non-finite"),
+    ("t,u", [(0, 1), (0.001, "inf")], "line 3, column 'u': non-finite"),
     ("t,u", [(0, 1), (0.002, 1), (0.001, 1)], "line 4, column 't': time is not strictly"),
     ("t,u", [(0, 1)], "at least 2 data rows"),
 ])

@@ -148,3 +148,46 @@ def test_what_cannot_be_read_is_refused(tmp_path):
     t[41] = t[40]
     with pytest.raises(DatasetError, match=r"line 43, column 't': time is not strictly"):
         read_experiment(write(tmp_path / "m.csv", signals(t)))
+
+
+def test_what_loggers_write_for_a_reading_they_did_not_get(tmp_path):
+    """An empty cell or NaN is a lost sample: its row is left out as lost, filled on the grid
+    and marked, with the lines and columns said; a row written twice is read once; a column
+    with no value in any row is a sensor the bench lacks. A required column with no value, or
+    an infinite value, is still refused."""
+    n = 2000
+    full = signals(np.arange(n) * 1e-3)
+    lines = [",".join(COLUMNS)] + [",".join(f"{full[c][i]:.17g}" for c in COLUMNS)
+                                   for i in range(n)]
+    for i, col, text in ((100, "p1", ""), (700, "y", "nan"), (1500, "p2", "NaN")):
+        cells = lines[i + 1].split(",")
+        cells[COLUMNS.index(col)] = text
+        lines[i + 1] = ",".join(cells)
+    lines.insert(1802, lines[1801])  # row 1800 (line 1802) written twice
+    path = tmp_path / "gaps.csv"
+    path.write_text("\n".join(lines) + "\n")
+    exp = read_experiment(path)
+
+    np.testing.assert_allclose(exp.t, np.arange(n) * 1e-3, rtol=0, atol=1e-12)
+    assert np.flatnonzero(~exp.valid).tolist() == [100, 700, 1500]
+    for c in ("u", "y", "p1", "p2"):
+        np.testing.assert_array_equal(getattr(exp, c)[exp.valid], full[c][exp.valid])
+    assert exp.u[700] == full["u"][699]  # the command held over the lost row
+    assert exp.notes[:2] == [
+        "3 rows with an empty or NaN reading left out as lost (lines 102 (p1), 702 (y), "
+        "1502 (p2))",
+        "1 row repeating the row before exactly read once (line 1803)"]
+
+    blank = dict(full, p2=np.full(n, np.nan))
+    path = write(tmp_path / "no_p2.csv", blank)
+    path.write_text(path.read_text().replace(",nan\n", ",\n"))
+    exp = read_experiment(path)
+    assert exp.p2 is None and exp.valid is None
+    assert exp.notes == ["column p2 holds no value in any row: read as not measured"]
+
+    with pytest.raises(DatasetError, match=r"no_t.csv: column 't' holds no value in any row"):
+        read_experiment(write(tmp_path / "no_t.csv", dict(full, t=np.full(n, np.nan))))
+    y = full["y"].copy()
+    y[5] = np.inf
+    with pytest.raises(DatasetError, match=r"inf.csv: line 7, column 'y': non-finite value"):
+        read_experiment(write(tmp_path / "inf.csv", dict(full, y=y)))

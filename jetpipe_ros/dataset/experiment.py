@@ -88,8 +88,8 @@ def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
     path = Path(path)
     required, any_of = tuple(required), tuple(any_of)
     declared(f"{path}: units", units)  # a bad declaration before the file
-    cols, line_nos = read_columns(path, required, (*COMPLETE, *OPTIONAL), any_of=any_of)
-    notes = to_si(f"{path}: units", cols, units)
+    cols, line_nos, read = read_columns(path, required, (*COMPLETE, *OPTIONAL), any_of=any_of)
+    notes = read + to_si(f"{path}: units", cols, units)
     timebase.check_increasing(path, cols["t"], line_nos)
     plausibility.check(path, cols, limits, line_nos)
     cols, valid, changes = timebase.regularise(path, cols, line_nos)
@@ -98,11 +98,19 @@ def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
 
 def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
                  any_of: Sequence[str] = (), least: int = 2, hint: str = ""
-                 ) -> tuple[dict[str, np.ndarray], np.ndarray]:
+                 ) -> tuple[dict[str, np.ndarray], np.ndarray, list[str]]:
     """The numeric columns ``known`` that a CSV with a header row has (``required`` all of
-    them, at least one of ``any_of``), each as a float array, and the file's line number of
-    every data row (blank rows skipped). Anything unreadable raises DatasetError naming the
-    file, the line and the column (``hint`` says what the columns should hold)."""
+    them, at least one of ``any_of``), each as a float array, the file's line number of every
+    data row kept, and what reading changed, one plain sentence each.
+
+    Blank rows are skipped. What loggers write for a reading they did not get (an empty cell,
+    or NaN) is a lost sample: its row is left out, as a row the logger lost (the grid fills
+    it: :mod:`jetpipe_ros.dataset.timebase`), and said; a column of ``known`` with no reading
+    in any row is a sensor the bench does not have (a logger with a fixed layout), read as
+    absent unless ``required``. A row repeated exactly (every value the same as the row
+    before, stamp included: a logger that wrote it twice) is read once. Anything else
+    unreadable raises DatasetError naming the file, the line and the column (``hint`` says
+    what the columns should hold); so does an infinite value."""
     try:
         handle = path.open(newline="")
     except OSError as exc:
@@ -117,9 +125,6 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
         if missing:
             raise DatasetError(f"{path}: line 1: missing column(s) {', '.join(missing)} "
                                f"(header has {', '.join(header)}{hint})")
-        if any_of and not any(c in header for c in any_of):
-            raise DatasetError(f"{path}: line 1: no measured column: needs at least one of "
-                               f"{', '.join(any_of)} (header has {', '.join(header)})")
         wanted = [c for c in known if c in header]
         index = {c: header.index(c) for c in wanted}
         rows: list[list[float]] = []
@@ -132,21 +137,55 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
                 i = index[col]
                 cell = row[i].strip() if i < len(row) else ""
                 try:
-                    value = float(cell)
+                    value = float(cell) if cell else math.nan
                 except ValueError:
                     raise DatasetError(f"{path}: line {line_no}, column {col!r}: "
                                        f"not a number: {cell!r}") from None
-                if not math.isfinite(value):
+                if math.isinf(value):
                     raise DatasetError(f"{path}: line {line_no}, column {col!r}: "
                                        f"non-finite value {cell!r}")
                 values.append(value)
             rows.append(values)
             lines.append(line_no)
-    if len(rows) < least:
-        raise DatasetError(f"{path}: needs at least {least} data rows, has {len(rows)}")
-    data = np.array(rows)
-    return ({c: np.ascontiguousarray(data[:, j]) for j, c in enumerate(wanted)},
-            np.array(lines))
+    data = np.array(rows, dtype=float).reshape(len(rows), len(wanted))
+    line_nos = np.array(lines, dtype=np.int64)
+    notes: list[str] = []
+    empty = [c for j, c in enumerate(wanted) if rows and np.isnan(data[:, j]).all()]
+    for col in empty:
+        if col in required:
+            raise DatasetError(f"{path}: column {col!r} holds no value in any row")
+    if empty:
+        notes.append(f"column{'s' if len(empty) > 1 else ''} {', '.join(empty)} hold"
+                     f"{'' if len(empty) > 1 else 's'} no value in any row: read as not "
+                     f"measured")
+        keep = [j for j, c in enumerate(wanted) if c not in empty]
+        wanted, data = [wanted[j] for j in keep], data[:, keep]
+    if any_of and not any(c in wanted for c in any_of):
+        raise DatasetError(f"{path}: line 1: no measured column: needs at least one of "
+                           f"{', '.join(any_of)} with values (header has {', '.join(header)})")
+    lost = np.isnan(data).any(axis=1)
+    if lost.any():
+        where = np.flatnonzero(lost)
+        shown = ", ".join(
+            f"{line_nos[i]} ({', '.join(c for j, c in enumerate(wanted) if np.isnan(data[i, j]))})"
+            for i in where[:3])
+        notes.append(f"{where.size} row{'s' if where.size > 1 else ''} with an empty or NaN "
+                     f"reading left out as lost (line{'s' if where.size > 1 else ''} {shown}"
+                     f"{', ...' if where.size > 3 else ''})")
+        data, line_nos = data[~lost], line_nos[~lost]
+    repeated = np.r_[False, (data[1:] == data[:-1]).all(axis=1)] if data.size else \
+        np.zeros(0, dtype=bool)
+    if repeated.any():
+        where = np.flatnonzero(repeated)
+        notes.append(f"{where.size} row{'s' if where.size > 1 else ''} repeating the row "
+                     f"before exactly read once (line{'s' if where.size > 1 else ''} "
+                     f"{', '.join(str(line_nos[i]) for i in where[:3])}"
+                     f"{', ...' if where.size > 3 else ''})")
+        data, line_nos = data[~repeated], line_nos[~repeated]
+    if len(data) < least:
+        raise DatasetError(f"{path}: needs at least {least} data rows, has {len(data)}")
+    return ({c: np.ascontiguousarray(data[:, j]) for j, c in enumerate(wanted)}, line_nos,
+            notes)
 
 
 def write_experiment(path: str | Path, columns: Mapping[str, np.ndarray]) -> None:

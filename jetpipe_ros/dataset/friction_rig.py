@@ -128,8 +128,8 @@ def read_records(root: str | Path) -> list[RigRecord]:
 
 def _read_csv(path: Path) -> tuple[np.ndarray, ...]:
     """(t, x, p, F on a regular grid, valid mask, notes) of one record CSV."""
-    cols, lines = read_columns(path, COLUMNS, COLUMNS, least=MIN_ROWS,
-                               hint="; needs t,x,p,F in s, m, Pa absolute, N")
+    cols, lines, read = read_columns(path, COLUMNS, COLUMNS, least=MIN_ROWS,
+                                     hint="; needs t,x,p,F in s, m, Pa absolute, N")
     t, x, p, force = (cols[c] for c in COLUMNS)
     check_increasing(path, t, lines)
     step = np.diff(t)
@@ -141,7 +141,9 @@ def _read_csv(path: Path) -> tuple[np.ndarray, ...]:
     after = np.clip(np.searchsorted(t, grid), 1, t.size - 1)
     nearest = np.minimum(np.abs(t[after] - grid), np.abs(t[after - 1] - grid))
     valid = nearest <= GAP_TOLERANCE * dt
-    notes = [f"{path.name}: {t.size} rows put on a {dt * 1e3:.3g} ms grid of {grid.size} points"]
+    notes = [f"{path.name}: {note}" for note in read]
+    notes.append(f"{path.name}: {t.size} rows put on a {dt * 1e3:.3g} ms grid of {grid.size} "
+                 f"points")
     if not valid.all():
         notes.append(f"{path.name}: {int((~valid).sum())} grid points in the logger's gaps "
                      f"masked (longest gap {step.max():.3g} s)")

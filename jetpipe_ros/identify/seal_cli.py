@@ -52,6 +52,8 @@ def _run(args) -> int:
         for prep in res.preps:
             files[out / "prediction" / f"{prep.record.name}.csv"] = prediction_csv(res, prep)
     fileio.write_files(files)
+    for note in notes:
+        print(f"read: {note}")
     for form, s in doc["summary"].items():
         print(f"{form:16s} held-out median NRMSE {s['median_nrmse'] * 100:5.2f} %  "
               f"R^2 within direction {s['median_r2_within']:5.2f}")
