@@ -191,3 +191,20 @@ def test_what_loggers_write_for_a_reading_they_did_not_get(tmp_path):
     y[5] = np.inf
     with pytest.raises(DatasetError, match=r"inf.csv: line 7, column 'y': non-finite value"):
         read_experiment(write(tmp_path / "inf.csv", dict(full, y=y)))
+
+
+@pytest.mark.parametrize("sep, name", [(";", "semicolon"), ("\t", "tab")])
+def test_a_spreadsheet_export_reads_as_the_plain_file(tmp_path, sep, name):
+    """A byte-order mark, metadata lines of a logger (``#`` first), a semicolon or tab as the
+    separator and a decimal comma: the same numbers as the comma-separated file, said once."""
+    full = signals(np.arange(500) * 1e-3)
+    plain = read_experiment(write(tmp_path / "plain.csv", full))
+    rows = [sep.join(f"{full[c][i]:.17g}".replace(".", ",") for c in COLUMNS)
+            for i in range(500)]
+    text = "\n".join(["# bench 3, logged 2026-11-27", sep.join(COLUMNS), *rows]) + "\n"
+    path = tmp_path / "export.csv"
+    path.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    exp = read_experiment(path)
+    for c in COLUMNS:
+        np.testing.assert_array_equal(getattr(exp, c), getattr(plain, c))
+    assert exp.notes == [f"read as {name}-separated, a decimal comma accepted"]

@@ -32,6 +32,9 @@ from jetpipe_ros.dataset.errors import DatasetError
 from jetpipe_ros.dataset.units import declared, to_si
 from jetpipe_ros.model.limits import NOMINAL, Limits
 
+#: Column separators a header is searched for, in order (a comma first: a comma-separated
+#: file has no other), with their names.
+DELIMITERS = {",": "comma", ";": "semicolon", "\t": "tab"}
 #: Columns every experiment needs.
 REQUIRED = ("t", "u")
 #: Measured columns, optional each; an experiment needs at least one of them.
@@ -103,7 +106,10 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
     them, at least one of ``any_of``), each as a float array, the file's line number of every
     data row kept, and what reading changed, one plain sentence each.
 
-    Blank rows are skipped. What loggers write for a reading they did not get (an empty cell,
+    Blank lines and comment lines (``#`` first: a logger's metadata) are skipped, a
+    spreadsheet's byte-order mark too; the separator is the header's (a comma, else a semicolon
+    or a tab, which then allow a decimal comma: a European spreadsheet's export), and said.
+    What loggers write for a reading they did not get (an empty cell,
     or NaN) is a lost sample: its row is left out, as a row the logger lost (the grid fills
     it: :mod:`jetpipe_ros.dataset.timebase`), and said; a column of ``known`` with no reading
     in any row is a sensor the bench does not have (a logger with a fixed layout), read as
@@ -112,30 +118,44 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
     unreadable raises DatasetError naming the file, the line and the column (``hint`` says
     what the columns should hold); so does an infinite value."""
     try:
-        handle = path.open(newline="")
+        # utf-8-sig: a spreadsheet's byte-order mark is not part of the first column's name;
+        # the numbers are ASCII, so an undecodable byte in a comment or label harms nothing.
+        handle = path.open(newline="", encoding="utf-8-sig", errors="replace")
     except OSError as exc:
         raise DatasetError(f"{path}: cannot open: {exc.strerror}") from exc
+    notes: list[str] = []
     with handle:
-        reader = csv.reader(handle)
+        numbered = ((n, text) for n, text in enumerate(handle, start=1)
+                    if text.strip() and not text.lstrip().startswith("#"))
         try:
-            header = [h.strip() for h in next(reader)]
+            first, head = next(numbered)
         except StopIteration:
             raise DatasetError(f"{path}: empty file, expected a header row") from None
+        delimiter = next((d for d in DELIMITERS if d in head), ",")
+        decimal_comma = delimiter != ","
+        if delimiter != ",":
+            notes.append(f"read as {DELIMITERS[delimiter]}-separated, a decimal comma "
+                         f"accepted")
+        header = [h.strip() for h in next(csv.reader([head], delimiter=delimiter))]
+        body = ((n, row) for n, text in numbered
+                for row in csv.reader([text], delimiter=delimiter))
         missing = [c for c in required if c not in header]
         if missing:
-            raise DatasetError(f"{path}: line 1: missing column(s) {', '.join(missing)} "
+            raise DatasetError(f"{path}: line {first}: missing column(s) {', '.join(missing)} "
                                f"(header has {', '.join(header)}{hint})")
         wanted = [c for c in known if c in header]
         index = {c: header.index(c) for c in wanted}
         rows: list[list[float]] = []
         lines: list[int] = []
-        for line_no, row in enumerate(reader, start=2):
-            if not row or all(not cell.strip() for cell in row):
+        for line_no, row in body:
+            if all(not cell.strip() for cell in row):
                 continue
             values = []
             for col in wanted:
                 i = index[col]
                 cell = row[i].strip() if i < len(row) else ""
+                if decimal_comma:
+                    cell = cell.replace(",", ".")
                 try:
                     value = float(cell) if cell else math.nan
                 except ValueError:
@@ -149,7 +169,6 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
             lines.append(line_no)
     data = np.array(rows, dtype=float).reshape(len(rows), len(wanted))
     line_nos = np.array(lines, dtype=np.int64)
-    notes: list[str] = []
     empty = [c for j, c in enumerate(wanted) if rows and np.isnan(data[:, j]).all()]
     for col in empty:
         if col in required:
@@ -161,7 +180,7 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
         keep = [j for j, c in enumerate(wanted) if c not in empty]
         wanted, data = [wanted[j] for j in keep], data[:, keep]
     if any_of and not any(c in wanted for c in any_of):
-        raise DatasetError(f"{path}: line 1: no measured column: needs at least one of "
+        raise DatasetError(f"{path}: no measured column: needs at least one of "
                            f"{', '.join(any_of)} with values (header has {', '.join(header)})")
     lost = np.isnan(data).any(axis=1)
     if lost.any():
