@@ -4,6 +4,7 @@ stamps resampled, other rates; what cannot be read still refused naming file, li
 import re
 
 import numpy as np
+import yaml
 import pytest
 
 from jetpipe_ros.dataset import DatasetError, read_dataset, read_experiment
@@ -208,3 +209,38 @@ def test_a_spreadsheet_export_reads_as_the_plain_file(tmp_path, sep, name):
     for c in COLUMNS:
         np.testing.assert_array_equal(getattr(exp, c), getattr(plain, c))
     assert exp.notes == [f"read as {name}-separated, a decimal comma accepted"]
+
+
+def test_a_loggers_own_column_names_are_declared_in_the_index(tmp_path):
+    """``columns:`` maps a logger's names onto the contract's, at the top level and per
+    experiment (the entry's own override); units are declared by the contract's names. A name
+    not in the header, a target outside the contract, or two columns for one are refused,
+    naming the file and the field."""
+    full = signals(np.arange(300) * 1e-3)
+    root = tmp_path / "d"
+    root.mkdir()
+    theirs = {"time": full["t"], "cmd": full["u"], "pos_mm": 1e3 * full["y"],
+              "pA": full["p1"], "pB": full["p2"]}
+    write(root / "a.csv", theirs)
+    write(root / "b.csv", {("command" if k == "cmd" else k): v for k, v in theirs.items()})
+    index = {"columns": {"time": "t", "cmd": "u", "pos_mm": "y", "pA": "p1", "pB": "p2"},
+             "units": {"y": "mm"},
+             "experiments": [{"file": "a.csv"},
+                             {"file": "b.csv", "columns": {"command": "u"}}]}
+    (root / "dataset.yaml").write_text(yaml.safe_dump(index))
+    ds = read_dataset(root)
+    for exp in ds.experiments:
+        for c in COLUMNS:
+            np.testing.assert_allclose(getattr(exp, c), full[c], rtol=1e-12, atol=0)
+    assert ds.notes[0].startswith("a.csv: columns time read as t, cmd read as u, pos_mm read "
+                                  "as y")
+    assert "command read as u" in ds.notes[2] and "cmd" not in ds.notes[2]
+
+    for columns, words in (({"time": "t", "cmd": "volts"}, r"'cmd': 'volts' is not a column"),
+                           ({"time": "t", "cmd": "u", "pA": "u"}, "two columns named 'u'"),
+                           ({"time": "t", "cmd": "u", "speed": "v"},
+                            r"a.csv: line 1: column\(s\) speed named in dataset.yaml's "
+                            r"'columns' not in the header")):
+        (root / "dataset.yaml").write_text(yaml.safe_dump({**index, "columns": columns}))
+        with pytest.raises(DatasetError, match=words):
+            read_dataset(root)

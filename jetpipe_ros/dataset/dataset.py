@@ -8,8 +8,10 @@
         load_force: 0.0     # N, constant, optional
         role: train         # train | holdout, optional
         units: {u: mV}      # units of this CSV's columns, optional (overrides the top level)
+        columns: {cmd: u}   # this CSV's own column names -> the contract's, optional
     units: {t: ms, p1: bar gauge, p2: bar gauge, gauge_reference: 1013.25 hPa}  # optional,
                     # for every experiment; gauge_reference: the ambient gauge is relative to
+    columns: {time: t, position: y}  # optional, for every experiment (an entry's own override)
 
 Units (:mod:`jetpipe_ros.dataset.units`) are converted to SI when the experiments are read; each
 experiment's notes, and :attr:`Dataset.notes`, say what was converted and what was done to its
@@ -35,12 +37,15 @@ import yaml
 
 from jetpipe_ros import fileio
 from jetpipe_ros.dataset.errors import DatasetError
-from jetpipe_ros.dataset.experiment import REQUIRED, Experiment, read_experiment, write_experiment
+from jetpipe_ros.dataset.experiment import (COMPLETE, OPTIONAL, REQUIRED, Experiment,
+                                            read_experiment, write_experiment)
 from jetpipe_ros.dataset.units import declared
 from jetpipe_ros.fileio import load_yaml
 from jetpipe_ros.model.limits import NOMINAL, Limits
 
 INDEX = "dataset.yaml"
+#: The contract's columns, what ``columns:`` may name.
+CONTRACT = (*COMPLETE, *OPTIONAL)
 PISTON = ("free", "locked")
 ROLES = ("train", "holdout")
 
@@ -58,6 +63,9 @@ class Entry:
     #: overridden by the entry's own; empty: SI. They describe the file: columns written with
     #: this entry must be in them (an experiment read back is in SI: write it with ``units={}``).
     units: dict[str, str] = field(default_factory=dict)
+    #: The CSV's own column names -> the contract's (``columns:`` of dataset.yaml, the
+    #: top level's overridden by the entry's own); units are declared by the contract's names.
+    columns: dict[str, str] = field(default_factory=dict)
 
     @property
     def name(self) -> str:
@@ -77,6 +85,8 @@ class Entry:
             out["role"] = self.role
         if self.units:
             out["units"] = dict(self.units)
+        if self.columns:
+            out["columns"] = dict(self.columns)
         out.update(self.extra)
         return out
 
@@ -106,9 +116,34 @@ class Dataset:
         return [f"{e.file}: {note}" for e, x in self for note in x.notes]
 
 
-def parse_entry(index: Path, i: int, raw: Any, units: Mapping[str, str] | None = None) -> Entry:
+def column_names(where: str, raw: Any) -> dict[str, str]:
+    """A ``columns:`` mapping (the CSV's name -> the contract's, docs/data.md) validated;
+    DatasetError naming ``where`` otherwise."""
+    if raw is None:
+        return {}
+    if not isinstance(raw, Mapping):
+        raise DatasetError(f"{where}: expected a mapping of the CSV's column names to the "
+                           f"contract's ({', '.join(CONTRACT)}), got {raw!r}")
+    out: dict[str, str] = {}
+    for source, target in raw.items():
+        if not isinstance(source, str) or target not in CONTRACT:
+            raise DatasetError(f"{where}: {source!r}: {target!r} is not a column of the "
+                               f"contract (one of {', '.join(CONTRACT)})")
+        if target in out.values():
+            raise DatasetError(f"{where}: two columns named {target!r}")
+        out[source] = target
+    return out
+
+
+def _merged(top: Mapping[str, str], own: Mapping[str, str]) -> dict[str, str]:
+    """The top level's column names with the entry's own overriding them, per contract name."""
+    return {**{s: t for s, t in top.items() if t not in own.values()}, **own}
+
+
+def parse_entry(index: Path, i: int, raw: Any, units: Mapping[str, str] | None = None,
+                columns: Mapping[str, str] | None = None) -> Entry:
     """Validate experiment ``i`` of ``index``; raise DatasetError naming entry and field.
-    ``units`` are the dataset's (top-level ``units:``), which the entry's own override."""
+    ``units`` and ``columns`` are the dataset's (top level), which the entry's own override."""
     where = f"{index}: experiments[{i}]"
     if not isinstance(raw, Mapping):
         raise DatasetError(f"{where}: expected a mapping with at least 'file', got {raw!r}")
@@ -133,8 +168,9 @@ def parse_entry(index: Path, i: int, raw: Any, units: Mapping[str, str] | None =
         raise DatasetError(f"{where} ({file}): field 'role' must be one of "
                            f"{', '.join(ROLES)}, got {role!r}")
     own = declared(f"{where} ({file}): field 'units'", raw.pop("units", None))
+    names = column_names(f"{where} ({file}): field 'columns'", raw.pop("columns", None))
     return Entry(file=file, piston=piston, load_force=float(load), role=role, extra=raw,
-                 units={**(units or {}), **own})
+                 units={**(units or {}), **own}, columns=_merged(columns or {}, names))
 
 
 def read_index(root: str | Path) -> list[Entry]:
@@ -153,7 +189,9 @@ def read_index(root: str | Path) -> list[Entry]:
     if not isinstance(doc, Mapping) or not isinstance(doc.get("experiments"), list):
         raise DatasetError(f"{index}: expected a top-level 'experiments:' list")
     units = declared(f"{index}: units", doc.get("units"))
-    entries = [parse_entry(index, i, raw, units) for i, raw in enumerate(doc["experiments"])]
+    columns = column_names(f"{index}: columns", doc.get("columns"))
+    entries = [parse_entry(index, i, raw, units, columns)
+               for i, raw in enumerate(doc["experiments"])]
     if not entries:
         raise DatasetError(f"{index}: 'experiments' is empty")
     seen: set[str] = set()
@@ -171,7 +209,8 @@ def read_dataset(root: str | Path, required: Iterable[str] = REQUIRED,
     declared units to SI and putting each on a regular grid (see :attr:`Dataset.notes`)."""
     root = Path(root)
     entries = read_index(root)
-    experiments = [read_experiment(root / e.file, required, limits, e.units) for e in entries]
+    experiments = [read_experiment(root / e.file, required, limits, e.units,
+                                   columns=e.columns) for e in entries]
     return Dataset(root=root, entries=entries, experiments=experiments)
 
 

@@ -78,12 +78,15 @@ class Experiment:
 
 def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
                     limits: Limits = NOMINAL, units: Mapping[str, str] | None = None, *,
-                    any_of: Iterable[str] = MEASURED) -> Experiment:
+                    any_of: Iterable[str] = MEASURED,
+                    columns: Mapping[str, str] | None = None) -> Experiment:
     """Read and validate an experiment CSV; raise DatasetError naming file, line and column.
 
     ``required`` columns must all be present, and at least one of ``any_of`` (the measured
     columns by default; ``()`` for a command-only file, as ``jetpipe simulate`` reads).
-    ``units`` (column -> unit, as declared in dataset.yaml) are converted to SI first. Values
+    ``columns`` (the file's column name -> the contract's, as declared in dataset.yaml) are
+    renamed first; ``units`` (column -> unit, as declared in dataset.yaml, by the contract's
+    names) are converted to SI then. Values
     outside ``limits`` (the nominal actuator's by default) are refused as physically
     impossible, with the likely unit mistake when a whole column is off. The experiment
     returned is on a regular grid (:mod:`jetpipe_ros.dataset.timebase`).
@@ -91,7 +94,8 @@ def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
     path = Path(path)
     required, any_of = tuple(required), tuple(any_of)
     declared(f"{path}: units", units)  # a bad declaration before the file
-    cols, line_nos, read = read_columns(path, required, (*COMPLETE, *OPTIONAL), any_of=any_of)
+    cols, line_nos, read = read_columns(path, required, (*COMPLETE, *OPTIONAL), any_of=any_of,
+                                        rename=columns)
     notes = read + to_si(f"{path}: units", cols, units)
     timebase.check_increasing(path, cols["t"], line_nos)
     plausibility.check(path, cols, limits, line_nos)
@@ -100,11 +104,13 @@ def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
 
 
 def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
-                 any_of: Sequence[str] = (), least: int = 2, hint: str = ""
+                 any_of: Sequence[str] = (), least: int = 2, hint: str = "",
+                 rename: Mapping[str, str] | None = None
                  ) -> tuple[dict[str, np.ndarray], np.ndarray, list[str]]:
     """The numeric columns ``known`` that a CSV with a header row has (``required`` all of
     them, at least one of ``any_of``), each as a float array, the file's line number of every
-    data row kept, and what reading changed, one plain sentence each.
+    data row kept, and what reading changed, one plain sentence each. ``rename`` maps the
+    file's own column names to those (each must be in the header).
 
     Blank lines and comment lines (``#`` first: a logger's metadata) are skipped, a
     spreadsheet's byte-order mark too; the separator is the header's (a comma, else a semicolon
@@ -137,6 +143,10 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
             notes.append(f"read as {DELIMITERS[delimiter]}-separated, a decimal comma "
                          f"accepted")
         header = [h.strip() for h in next(csv.reader([head], delimiter=delimiter))]
+        if rename:
+            notes.append("column" + ("s " if len(rename) > 1 else " ") + ", ".join(
+                f"{a} read as {rename[a]}" for a in header if a in rename))
+            header = _renamed(path, first, header, rename)
         body = ((n, row) for n, text in numbered
                 for row in csv.reader([text], delimiter=delimiter))
         missing = [c for c in required if c not in header]
@@ -205,6 +215,22 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
         raise DatasetError(f"{path}: needs at least {least} data rows, has {len(data)}")
     return ({c: np.ascontiguousarray(data[:, j]) for j, c in enumerate(wanted)}, line_nos,
             notes)
+
+
+def _renamed(path: Path, line: int, header: list[str], rename: Mapping[str, str]
+             ) -> list[str]:
+    """``header`` with the file's names in ``rename`` replaced by the contract's."""
+    absent = [a for a in rename if a not in header]
+    if absent:
+        raise DatasetError(f"{path}: line {line}: column(s) {', '.join(absent)} named in "
+                           f"dataset.yaml's 'columns' not in the header (header has "
+                           f"{', '.join(header)})")
+    out = [rename.get(h, h) for h in header]
+    twice = sorted({c for c in out if out.count(c) > 1 and c in rename.values()})
+    if twice:
+        raise DatasetError(f"{path}: line {line}: two columns would be {', '.join(twice)} "
+                           f"(the header has it besides the one 'columns' renames)")
+    return out
 
 
 def write_experiment(path: str | Path, columns: Mapping[str, np.ndarray]) -> None:
