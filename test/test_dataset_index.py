@@ -43,8 +43,16 @@ def test_bad_entry_names_the_field(tmp_path, entry, field):
 
 def test_missing_index_or_csv_is_named(tmp_path):
     (tmp_path / "empty").mkdir()
-    with pytest.raises(DatasetError, match="dataset.yaml: missing"):
+    with pytest.raises(DatasetError, match="dataset.yaml: missing") as refused:
         read_dataset(tmp_path / "empty")
+    assert "would read" not in str(refused.value)
+    # CSVs without an index: the index they would need is spelled out, and it reads.
+    write_dataset(tmp_path / "bare", [(Entry("b.csv"), columns()), (Entry("a.csv"), columns())])
+    (tmp_path / "bare" / "dataset.yaml").unlink()
+    with pytest.raises(DatasetError, match="For the 2 CSV file") as refused:
+        read_dataset(tmp_path / "bare")
+    (tmp_path / "bare" / "dataset.yaml").write_text(str(refused.value).split("would read:\n")[1])
+    assert [e.file for e in read_dataset(tmp_path / "bare").entries] == ["a.csv", "b.csv"]
     write_dataset(tmp_path / "ds", [(Entry("a.csv"), columns())])
     (tmp_path / "ds" / "a.csv").unlink()
     with pytest.raises(DatasetError, match="a.csv: cannot open"):

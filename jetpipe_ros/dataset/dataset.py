@@ -182,8 +182,13 @@ def read_index(root: str | Path) -> list[Entry]:
     try:
         doc = load_yaml(index)
     except FileNotFoundError:
-        raise DatasetError(f"{index}: missing; a dataset directory needs an index listing its "
-                           f"experiments (docs/data.md)") from None
+        found = sorted(f.name for f in root.glob("*.csv"))
+        sketch = "".join(f"\n  - file: {name}\n    piston: free" for name in found[:20])
+        raise DatasetError(
+            f"{index}: missing; a dataset directory needs an index listing its experiments "
+            f"(docs/data.md)" + (f". For the {len(found)} CSV file(s) here, with every piston "
+                                 f"free (mark a clamped one 'locked'), it would read:"
+                                 f"\nexperiments:{sketch}" if found else "")) from None
     except yaml.YAMLError as exc:
         raise DatasetError(f"{index}: not valid YAML: {exc}") from None
     if not isinstance(doc, Mapping) or not isinstance(doc.get("experiments"), list):
