@@ -28,3 +28,17 @@ def test_a_small_named_effect_is_called_small_and_not_also_invisible(tmp_path):
     assert invisible.split(".")[0] == "<code>moving_mass</code>"
     assert "the named effect (<code>friction_dynamics:lugre</code>, " \
            "<code>friction_dynamics:maxwell_slip</code>) would not show" in text
+
+
+def test_a_ranking_rows_calibration_knobs_are_folded_away():
+    """The ranking table shows each candidate's own parameters; the ten calibration knobs
+    fitted beside them fold into a <details> (they had filled a column wider than the page)."""
+    from jetpipe_ros.workflows.report import _cell, _params_cell
+    result = json.loads(gzip.decompress(STORED.read_bytes()))
+    row = next(r for r in result["ranking"] if "calibration" in r["params"])
+    cell = _cell(_params_cell(row["params"]))
+    shown, folded = cell.split("<details><summary>calibration</summary>")
+    effect = row["effects"][0]
+    assert shown.startswith(f"{effect}.") and "calibration" not in shown
+    assert folded.endswith("</details>") and folded.count("=") == len(
+        row["params"]["calibration"])

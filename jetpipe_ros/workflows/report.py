@@ -10,10 +10,12 @@ subsystems, the paper's metrics, what the experiments cannot show, how the data 
 from __future__ import annotations
 
 import html
+from dataclasses import dataclass
 
 import numpy as np
 import yaml
 
+from jetpipe_ros.diagnosis.calibration import NAME as CALIBRATION_GROUP
 from jetpipe_ros.diagnosis.data import Prepared
 from jetpipe_ros.diagnosis.nuisance import words as nuisance_words
 from jetpipe_ros.diagnosis.separation import words as stand_in_words
@@ -352,18 +354,38 @@ def _table(rows: list[list], header: list[str]) -> str:
     return f"<table><tr>{head}</tr>{body}</table>"
 
 
-def _params_text(params: dict) -> str:
-    """Fitted parameters as text; a pair's are prefixed with their effect."""
-    flat = {}
+@dataclass(frozen=True)
+class _Html:
+    """A table cell already in HTML."""
+
+    text: str
+
+
+def _params_cell(params: dict) -> _Html:
+    """Fitted parameters of a ranking row: the effect's (a pair's prefixed with their effect)
+    in the open, the calibration knobs fitted beside them folded away (the augmented model's
+    are in the calibration figure); neither spread over the row's width."""
+    flat, knobs = {}, {}
     for k, v in params.items():
-        if isinstance(v, dict):
+        if k == CALIBRATION_GROUP and isinstance(v, dict):
+            knobs = v
+        elif isinstance(v, dict):
             flat.update({f"{k}.{kk}": vv for kk, vv in v.items()})
         else:
             flat[k] = v
-    return ", ".join(f"{k}={v:.3g}" for k, v in flat.items() if isinstance(v, (int, float)))
+
+    def text(values: dict) -> str:
+        return html.escape(", ".join(f"{k}={v:.3g}" for k, v in values.items()
+                                     if isinstance(v, (int, float))))
+
+    folded = (f"<details><summary>calibration</summary>{text(knobs)}</details>"
+              if knobs else "")
+    return _Html(text(flat) + folded)
 
 
 def _cell(c) -> str:
+    if isinstance(c, _Html):
+        return c.text
     if isinstance(c, float):
         return f"{c:.4g}"
     if c is None:
@@ -422,7 +444,7 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
                   f"{100 * r['shrinkage']:.0f} %", r["t"], r["t_cross_check"],
                   "yes" if r["explains"] else "no",
                   f"{100 * r['alone']['shrinkage']:.0f} %" if r["alone"] else None,
-                  _params_text(r["params"])]
+                  _params_cell(r["params"])]
                  for r in result["ranking"]]
     cal = result["calibration"]
     cal_rows = [[k, ", ".join(cal["parameters"][k]), f"{x:.3f}",
