@@ -260,7 +260,7 @@ def test_bad_datasets_get_clear_errors_and_leave_no_output(tmp_path, capsys, mon
     make_dataset(tmp_path / "data", ModelParams())
     csv = tmp_path / "data" / "sweep.csv"
     lines = csv.read_text().splitlines()
-    lines[100] = lines[100].replace(lines[100].split(",")[3], "nan", 1)
+    lines[100] = lines[100].replace(lines[100].split(",")[3], "inf", 1)  # nan: a lost reading
     csv.write_text("\n".join(lines) + "\n")
     out = tmp_path / "out"
 
