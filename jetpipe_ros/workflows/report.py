@@ -67,9 +67,17 @@ def placement_figure(placement: dict) -> str:
     ax.set_xlabel("held-out gap removed by changing this alone [%]")
     replays = placement["replays"]
     names = ["valve +\nchambers\n(fed measured\nmotion)", "mechanics\n(fed measured\npressures)"]
-    gaps = [replays["valve_and_chambers"]["gap"],
-            replays["mechanics"]["gap"] if replays["mechanics"] else 0.0]
-    bx.bar(names, gaps, color=["#9ecae1", "#fdae6b"])
+    chambers = replays["valve_and_chambers"]
+    # A replay with nothing measured to compare (no pressure; the mechanics without both) is
+    # not a zero gap: drawn as not judged.
+    gaps = [chambers["gap"] if {"p1", "p2"} & set(chambers) else None,
+            replays["mechanics"]["gap"] if replays["mechanics"] else None]
+    bx.bar(names, [g or 0.0 for g in gaps], color=["#9ecae1", "#fdae6b"])
+    for i, g in enumerate(gaps):
+        if g is None:
+            bx.text(i, 0.0, "not judged:\ntoo few\nsensors", ha="center", va="bottom",
+                    fontsize=8, color="#666666")
+    bx.set_ylim(0.0, 1.2 * max([g for g in gaps if g is not None] or [0.0]) or 1.0)
     bx.set_ylabel("held-out gap of the replay [%]")
     bx.set_title(f"answer: {placement['subsystem']}", fontsize=10)
     fig.tight_layout()
@@ -79,13 +87,15 @@ def placement_figure(placement: dict) -> str:
 def placement_section(placement: dict) -> str:
     """The report's section on where an unlisted gap starts, in words and a figure."""
     words = placement["words"][0].upper() + placement["words"][1:]
+    where = ("these records cannot place it" if placement["subsystem"] == "none" else
+             f"the gap starts in the <b>{html.escape(placement['subsystem'])}</b>")
     return (f"<h3>Where it starts (experiments on the records with the final model)</h3>"
-            f"<p>{html.escape(words)}: the gap starts in the "
-            f"<b>{html.escape(placement['subsystem'])}</b>. Each experiment changes one thing the "
+            f"<p>{html.escape(words)}: {where}. Each experiment changes one thing the "
             f"model is told and fits it on the training data; a change of one signal that "
             f"removes at least {100 * placement['places_at']:.0f} % of the held-out gap places "
             f"the cause there, else the subsystem whose replay with measured inputs still "
-            f"misses does.</p>" + placement_figure(placement))
+            f"misses does; with too few sensors for the replays, the candidate that explains "
+            f"most of the gap.</p>" + placement_figure(placement))
 
 
 def calibration_figure(result: dict) -> str:
