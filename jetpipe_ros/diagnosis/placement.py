@@ -35,13 +35,16 @@ changing one thing and asking how much of the held-out gap goes:
   when it does not, the chambers do (what the gas does beyond a flow that depends on them:
   heat, leaks across the piston, volumes in motion);
 - **fewer sensors**: the mechanics replays only with both pressures measured, the chambers
-  only against a measured pressure. Without the mechanics' replay, a chambers' replay gap
-  beyond noise still places the cause in the valve and chambers; when the chambers reproduce
-  the pressure measured to within noise, or no pressure is measured at all (the position
-  alone), no replay can judge, and the candidate that explains the largest share of the gap
-  (on top of the recalibration, significantly) places it where it acts, said as such; with no
-  candidate explaining any of it, the answer is that these records cannot place it
-  (subsystem ``none``), not a default.
+  only against a measured pressure. With one pressure, the chambers' replay is set against the
+  whole model on the same signal: fed the measured motion, the valve and chambers keep a gap
+  of their own (beyond noise, and at least half the whole model's on that pressure) when the
+  cause is theirs, and go on to the flow-map test above; when most of the pressure's gap goes
+  once the motion is the measured one, the motion carried the error, and the mechanics holds
+  the cause by elimination (said so). With no pressure measured (the position alone), or
+  nothing beyond noise in the pressure either way, no replay can judge: the candidate that
+  explains the largest share of the gap (on top of the recalibration, significantly) places it
+  where it acts, said as such; with no candidate explaining any of it, the answer is that these
+  records cannot place it (subsystem ``none``), not a default.
 
 A one-signal experiment places the cause when it removes at least half of the held-out gap
 beyond noise: more than all else together, so the signal it changes is where the gap starts. A
@@ -309,7 +312,8 @@ def place(prepared: Prepared, params: ModelParams,
     ``leads`` are the candidates that explain part of the gap (name, subsystem, held-out
     share removed): where the records hold too few signals for any replay to judge, the
     largest of them places it."""
-    base = score(prepared, predict_all(params, prepared, None), "holdout")
+    whole = predict_all(params, prepared, None)
+    base = score(prepared, whole, "holdout")
     # What the same refit of the knobs leaves without any experiment: the bar each one is
     # judged against, so that no experiment gets credit for what the knobs alone remove.
     knobs_alone = _recalibrated(prepared, params, lambda q, _: predict_all(q, prepared, None))
@@ -336,14 +340,23 @@ def place(prepared: Prepared, params: ModelParams,
     chambers = replays["valve_and_chambers"]["gap"]
     if replays["mechanics"] is None:
         words += "; the mechanics cannot be replayed apart (it needs both pressures measured)"
-        measured = any(s in replays["valve_and_chambers"] for s in ("p1", "p2"))
-        if measured and chambers >= NOISE_GAP:
-            subsystem = "valve+chamber"
-        else:
-            words += (f"; the valve and chambers replayed on the measured motion miss the "
-                      f"measured pressure by {chambers:.2f} %, within noise" if measured else
-                      "; nor can the chambers (no chamber pressure is measured)")
+        if not {"p1", "p2"} & set(replays["valve_and_chambers"]):
+            words += "; nor can the chambers (no chamber pressure is measured)"
             return {**out, **_by_candidates(leads, words)}
+        # One replay against the whole model on the same signals: fed the measured motion,
+        # the valve and chambers keep a gap of their own if the cause is theirs; if the
+        # motion was what the whole model got wrong, most of the pressure's gap goes.
+        pressures = score(prepared, whole, "holdout", ("p1", "p2")).gap
+        words += (f"; fed the measured motion, the valve and chambers miss the measured "
+                  f"pressure by {chambers:.2f} %, the whole model by {pressures:.2f} %")
+        if chambers >= max(NOISE_GAP, PLACES * pressures):
+            subsystem = "valve+chamber"
+        elif pressures >= NOISE_GAP:
+            return {**out, "subsystem": "mechanics",
+                    "words": words + ": the motion carries the error, so it starts in the "
+                                     "mechanics (by elimination: not replayed apart)"}
+        else:
+            return {**out, **_by_candidates(leads, words + ", both within noise")}
     else:
         mechanics = replays["mechanics"]["gap"]
         subsystem = "mechanics" if mechanics > chambers else "valve+chamber"
