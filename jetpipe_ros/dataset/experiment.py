@@ -131,24 +131,23 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
         raise DatasetError(f"{path}: cannot open: {exc.strerror}") from exc
     notes: list[str] = []
     with handle:
-        numbered = ((n, text) for n, text in enumerate(handle, start=1)
-                    if text.strip() and not text.lstrip().startswith("#"))
-        try:
-            first, head = next(numbered)
-        except StopIteration:
-            raise DatasetError(f"{path}: empty file, expected a header row") from None
+        first, head = 0, ""
+        for first, head in enumerate(handle, start=1):
+            if head.strip() and not head.lstrip().startswith("#"):
+                break
+        else:
+            raise DatasetError(f"{path}: empty file, expected a header row")
         delimiter = next((d for d in DELIMITERS if d in head), ",")
         decimal_comma = delimiter != ","
         if delimiter != ",":
             notes.append(f"read as {DELIMITERS[delimiter]}-separated, a decimal comma "
                          f"accepted")
         header = [h.strip() for h in next(csv.reader([head], delimiter=delimiter))]
+        reader = csv.reader(handle, delimiter=delimiter)  # the lines after the header
         if rename:
             notes.append("column" + ("s " if len(rename) > 1 else " ") + ", ".join(
                 f"{a} read as {rename[a]}" for a in header if a in rename))
             header = _renamed(path, first, header, rename)
-        body = ((n, row) for n, text in numbered
-                for row in csv.reader([text], delimiter=delimiter))
         missing = [c for c in required if c not in header]
         if missing:
             raise DatasetError(f"{path}: line {first}: missing column(s) {', '.join(missing)} "
@@ -157,9 +156,11 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
         index = {c: header.index(c) for c in wanted}
         rows: list[list[float]] = []
         lines: list[int] = []
-        for line_no, row in body:
-            if all(not cell.strip() for cell in row):
+        for row in reader:
+            if (not row or row[0].lstrip().startswith("#")
+                    or all(not cell.strip() for cell in row)):
                 continue
+            line_no = first + reader.line_num
             values = []
             for col in wanted:
                 i = index[col]
