@@ -355,7 +355,7 @@ def test_a_real_loggers_record_is_diagnosed_and_its_output_follows_the_schema(tm
 def test_corrections_said_of_many_files_are_printed_once():
     """A unit converted in every file is one line with the files named, not one per file;
     notes that differ stay apart, in the order first said."""
-    from jetpipe_ros.diagnosis.diagnose import grouped
+    from jetpipe_ros.dataset import grouped_notes as grouped
     notes = [f"{f}.csv: y: mm -> m (x 0.001)" for f in "abcde"] + [
         "a.csv: 3 rows missing", "holdout as marked", "b.csv: 3 rows missing"]
     assert grouped(notes) == ["5 files (a.csv, b.csv, c.csv, ...): y: mm -> m (x 0.001)",

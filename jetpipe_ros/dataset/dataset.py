@@ -173,6 +173,24 @@ def parse_entry(index: Path, i: int, raw: Any, units: Mapping[str, str] | None =
                  units={**(units or {}), **own}, columns=_merged(columns or {}, names))
 
 
+def grouped_notes(notes: Sequence[str]) -> list[str]:
+    """Notes ``file: what``, one line for each ``what`` with the files it is said of (a unit
+    converted in every file is one line, not fifteen), in the order first said."""
+    files: dict[str, list[str]] = {}
+    for note in notes:
+        name, sep, what = note.partition(": ")
+        files.setdefault(what if sep else note, []).append(name if sep else "")
+    out = []
+    for what, names in files.items():
+        names = [n for n in names if n]
+        if len(names) > 1:
+            shown = ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
+            out.append(f"{len(names)} files ({shown}): {what}")
+        else:
+            out.append(f"{names[0]}: {what}" if names else what)
+    return out
+
+
 def read_index(root: str | Path) -> list[Entry]:
     """Read and validate ``root/dataset.yaml`` without loading the CSVs."""
     root = Path(root)

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from jetpipe_ros.dataset import Dataset, units
+from jetpipe_ros.dataset import Dataset, grouped_notes, units
 from jetpipe_ros.diagnosis import calibration
 from jetpipe_ros.diagnosis.alignment import Alignment, align
 from jetpipe_ros.diagnosis.calibration import CALIBRATION
@@ -350,24 +350,6 @@ def recalibrate(prepared: Prepared, nominal: ModelParams,
     return with_nuisance(prepared, nominal, cal)
 
 
-def grouped(notes: Sequence[str]) -> list[str]:
-    """Notes ``file: what``, one line for each ``what`` with the files it is said of (a unit
-    converted in every file is one line, not fifteen), in the order first said."""
-    files: dict[str, list[str]] = {}
-    for note in notes:
-        name, sep, what = note.partition(": ")
-        files.setdefault(what if sep else note, []).append(name if sep else "")
-    out = []
-    for what, names in files.items():
-        names = [n for n in names if n]
-        if len(names) > 1:
-            shown = ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
-            out.append(f"{len(names)} files ({shown}): {what}")
-        else:
-            out.append(f"{names[0]}: {what}" if names else what)
-    return out
-
-
 def diagnose_dataset(dataset: Dataset, nominal: ModelParams | None = None,
                      workers: Workers = IN_PROCESS,
                      progress: Callable[[str], None] = lambda message: None) -> Diagnosis:
@@ -376,7 +358,7 @@ def diagnose_dataset(dataset: Dataset, nominal: ModelParams | None = None,
     ``progress``."""
     nominal = nominal if nominal is not None else ModelParams()
     prepared = prepare(dataset)
-    for note in grouped(prepared.corrections):
+    for note in grouped_notes(prepared.corrections):
         progress(f"corrected: {note}")
     # The linear algebra here is on small matrices: BLAS threads only spin and take the cores
     # the fitting processes need (measured: 2x slower per fit with them).

@@ -12,7 +12,7 @@ from pathlib import Path
 
 def _run(args) -> int:
     from jetpipe_ros import fileio
-    from jetpipe_ros.dataset import DatasetError, read_dataset, read_records
+    from jetpipe_ros.dataset import DatasetError, grouped_notes, read_dataset, read_records
     from jetpipe_ros.identify.experiments import FRICTION, of_kind, recordings
     from jetpipe_ros.identify.seal import identify_seal, prepare, prepare_test
     from jetpipe_ros.identify.seal_report import (html_report, params_yaml, prediction_csv,
@@ -52,7 +52,7 @@ def _run(args) -> int:
         for prep in res.preps:
             files[out / "prediction" / f"{prep.record.name}.csv"] = prediction_csv(res, prep)
     fileio.write_files(files)
-    for note in notes:
+    for note in grouped_notes(notes):
         print(f"read: {note}")
     for form, s in doc["summary"].items():
         print(f"{form:16s} held-out median NRMSE {s['median_nrmse'] * 100:5.2f} %  "
