@@ -139,7 +139,7 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
             raise DatasetError(f"{path}: empty file, expected a header row")
         delimiter = next((d for d in DELIMITERS if d in head), ",")
         decimal_comma = delimiter != ","
-        if delimiter != ",":
+        if decimal_comma:
             notes.append(f"read as {DELIMITERS[delimiter]}-separated, a decimal comma "
                          f"accepted")
         header = [h.strip() for h in next(csv.reader([head], delimiter=delimiter))]
@@ -195,27 +195,28 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
                            f"{', '.join(any_of)} with values (header has {', '.join(header)})")
     lost = np.isnan(data).any(axis=1)
     if lost.any():
-        where = np.flatnonzero(lost)
-        shown = ", ".join(
-            f"{line_nos[i]} ({', '.join(c for j, c in enumerate(wanted) if np.isnan(data[i, j]))})"
-            for i in where[:3])
-        notes.append(f"{where.size} row{'s' if where.size > 1 else ''} with an empty or NaN "
-                     f"reading left out as lost (line{'s' if where.size > 1 else ''} {shown}"
-                     f"{', ...' if where.size > 3 else ''})")
+        shown = [f"{line_nos[i]} ({', '.join(c for c, x in zip(wanted, data[i]) if np.isnan(x))})"
+                 for i in np.flatnonzero(lost)[:3]]
+        notes.append(_rows_said(lost, "with an empty or NaN reading left out as lost", shown))
         data, line_nos = data[~lost], line_nos[~lost]
     repeated = np.r_[False, (data[1:] == data[:-1]).all(axis=1)] if data.size else \
         np.zeros(0, dtype=bool)
     if repeated.any():
-        where = np.flatnonzero(repeated)
-        notes.append(f"{where.size} row{'s' if where.size > 1 else ''} repeating the row "
-                     f"before exactly read once (line{'s' if where.size > 1 else ''} "
-                     f"{', '.join(str(line_nos[i]) for i in where[:3])}"
-                     f"{', ...' if where.size > 3 else ''})")
+        notes.append(_rows_said(repeated, "repeating the row before exactly read once",
+                                [str(n) for n in line_nos[repeated][:3]]))
         data, line_nos = data[~repeated], line_nos[~repeated]
     if len(data) < least:
         raise DatasetError(f"{path}: needs at least {least} data rows, has {len(data)}")
     return ({c: np.ascontiguousarray(data[:, j]) for j, c in enumerate(wanted)}, line_nos,
             notes)
+
+
+def _rows_said(rows: np.ndarray, what: str, first: list[str]) -> str:
+    """A note on the ``rows`` (a mask) that reading changed: how many, ``what`` was done, and
+    the ``first`` few of them (their lines)."""
+    n = int(rows.sum())
+    return (f"{n} row{'s' if n > 1 else ''} {what} (line{'s' if n > 1 else ''} "
+            f"{', '.join(first)}{', ...' if n > len(first) else ''})")
 
 
 def _renamed(path: Path, line: int, header: list[str], rename: Mapping[str, str]
