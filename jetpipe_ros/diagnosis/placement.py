@@ -195,7 +195,9 @@ def subsystem_gaps(prepared: Prepared, params: ModelParams, role: str | None = N
                    own: dict[str, ModelParams] | None = None) -> dict:
     """Gap [%] of each subsystem replayed with its inputs held on the measurements (``role``
     samples; all for None), each on ``params`` or on its own parameters in ``own`` (by replay
-    mode: chambers, mechanics); and the steady pressure offset and noise the sensors show."""
+    mode: chambers, mechanics); and the steady pressure offset and noise the sensors show. A
+    replay with nothing measured to compare it with is None, not a gap of zero: the valve and
+    chambers without a pressure sensor, the mechanics without both (it is fed both)."""
     own = {"chambers": params, "mechanics": params, **(own or {})}
     chambers = score(prepared, _replays(own["chambers"], prepared, "chambers"), role,
                      ("p1", "p2"))
@@ -212,7 +214,7 @@ def subsystem_gaps(prepared: Prepared, params: ModelParams, role: str | None = N
             offsets.append(float(np.median((rec.p1 - pred.p1)[steady])))
     return {
         "valve_and_chambers": {"driven_by": "measured command and piston motion",
-                               **chambers.to_json()},
+                               **chambers.to_json()} if chambers.mse else None,
         "mechanics": {"driven_by": "measured chamber pressures", **mechanics.to_json()}
         if mechanics.mse else None,
         "sensors": {"steady_pressure_offset_pa": float(np.median(offsets)) if offsets else None,
@@ -337,12 +339,12 @@ def place(prepared: Prepared, params: ModelParams,
                 "words": f"{what} removes {100 * best['removed']:.0f} % of the held-out gap"}
     words = (f"no one measured signal explains it (best: {best['signal']}, "
              f"{100 * best['removed']:.0f} %)")
-    chambers = replays["valve_and_chambers"]["gap"]
     if replays["mechanics"] is None:
         words += "; the mechanics cannot be replayed apart (it needs both pressures measured)"
-        if not {"p1", "p2"} & set(replays["valve_and_chambers"]):
+        if replays["valve_and_chambers"] is None:
             words += "; nor can the chambers (no chamber pressure is measured)"
             return {**out, **_by_candidates(leads, words)}
+        chambers = replays["valve_and_chambers"]["gap"]
         # One replay against the whole model on the same signals: fed the measured motion,
         # the valve and chambers keep a gap of their own if the cause is theirs; if the
         # motion was what the whole model got wrong, most of the pressure's gap goes.
@@ -359,6 +361,7 @@ def place(prepared: Prepared, params: ModelParams,
             return {**out, **_by_candidates(leads, words + ", both within noise")}
     else:
         mechanics = replays["mechanics"]["gap"]
+        chambers = replays["valve_and_chambers"]["gap"]
         subsystem = "mechanics" if mechanics > chambers else "valve+chamber"
         words += (f"; replayed with their inputs measured, the mechanics miss by "
                   f"{mechanics:.2f} %, the valve and chambers by {chambers:.2f} %")

@@ -67,11 +67,9 @@ def placement_figure(placement: dict) -> str:
     ax.set_xlabel("held-out gap removed by changing this alone [%]")
     replays = placement["replays"]
     names = ["valve +\nchambers\n(fed measured\nmotion)", "mechanics\n(fed measured\npressures)"]
-    chambers = replays["valve_and_chambers"]
-    # A replay with nothing measured to compare (no pressure; the mechanics without both) is
-    # not a zero gap: drawn as not judged.
-    gaps = [chambers["gap"] if {"p1", "p2"} & set(chambers) else None,
-            replays["mechanics"]["gap"] if replays["mechanics"] else None]
+    # A replay with nothing measured to compare (None: no pressure; the mechanics without both)
+    # is not a zero gap: drawn as not judged.
+    gaps = [replays[k]["gap"] if replays[k] else None for k in ("valve_and_chambers", "mechanics")]
     bx.bar(names, [g or 0.0 for g in gaps], color=["#9ecae1", "#fdae6b"])
     for i, g in enumerate(gaps):
         if g is None:
@@ -442,7 +440,7 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
                 for s in ("gap", "y", "p1", "p2") if s in loc["signals"]["nominal"]]
     sub = loc["subsystems"]
     sub_rows = [["valve and chambers (driven by measured motion)",
-                 sub["valve_and_chambers"]["gap"]],
+                 sub["valve_and_chambers"]["gap"] if sub["valve_and_chambers"] else None],
                 ["mechanics (driven by measured pressures)",
                  sub["mechanics"]["gap"] if sub["mechanics"] else None],
                 ["sensors: steady pressure offset [Pa]",
