@@ -2,6 +2,7 @@
 and their recovery from data whose nominal parameters are off (no unmodelled effect)."""
 
 import dataclasses
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -144,6 +145,9 @@ def test_a_joint_fit_grids_the_effect_from_a_given_base(off_bench):
 class _StubFitter:
     """Runs no model: each job's fit gets the training error its start's basin is given, so
     the search's bookkeeping is checked alone (the jobs it asks for, the fit it keeps)."""
+
+    #: records measuring all three signals: every knob judged
+    prepared = SimpleNamespace(sensors=("y", "p1", "p2"))
 
     def __init__(self, recalibration_basin, own_basin):
         self.errors = {"recalibration": recalibration_basin, "own": own_basin}

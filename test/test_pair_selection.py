@@ -52,9 +52,11 @@ class TableFitter:
         self.fitted.append(effects)
         params = object()
         self.below[id(params)] = effects
-        z = np.concatenate([group(g).start() + (0.0 if g == CAL else 0.5) for g in groups])
+        knobs = {g: group(g).start() if g == CAL else (group(g).start() + 0.5) % 1.0
+                 for g in groups}
         s = score(ERRORS.get(effects, OTHER))
-        return Fit(groups=tuple(groups), values={g: {} for g in groups}, z=z, params=params,
+        return Fit(groups=tuple(groups), values={g: group(g).values(z) for g, z in knobs.items()},
+                   z=np.concatenate(list(knobs.values())), params=params,
                    train=s, holdout=s, holdout_windows=np.zeros(4), evaluations=1,
                    seconds=0.0)
 

@@ -4,6 +4,7 @@ and which of calibration and effect the data need."""
 import numpy as np
 import pytest
 
+from jetpipe_ros.diagnosis.calibration import CALIBRATION
 from jetpipe_ros.diagnosis.candidates import CANDIDATES
 from jetpipe_ros.diagnosis.fit import Fit
 from jetpipe_ros.diagnosis.score import Score
@@ -26,7 +27,8 @@ def fit(name, gap_pct, windows, **values):
     values = {g: {k.name: CANDIDATES[g].typical.get(k.name, k.off) for k in CANDIDATES[g].knobs}
               | values.get(g, {}) for g in groups if g != "calibration"}
     if "calibration" in groups:
-        values["calibration"] = {"flow_gain_charge": 0.9, "friction_exit": 1.3}
+        values["calibration"] = (CALIBRATION.values(CALIBRATION.start())
+                                 | {"flow_gain_charge": 0.9, "friction_exit": 1.3})
     return Fit(groups=groups, values=values, z=np.zeros(len(groups)), params=ModelParams(),
                train=score(gap_pct), holdout=score(gap_pct),
                holdout_windows=np.asarray(windows, dtype=float), evaluations=1, seconds=0.0)
@@ -292,7 +294,6 @@ def test_a_pair_member_back_where_it_vanishes_is_found():
     """diagnose.vanished: a joint refit that put the supply back at 10 bar left the leak doing
     the work (the pair is the leak alone, refitted without the supply); a member that still
     acts, even slightly, or a single effect, is not taken out."""
-    from jetpipe_ros.diagnosis.calibration import CALIBRATION
     from jetpipe_ros.diagnosis.diagnose import vanished
 
     def joint(supply_pa):

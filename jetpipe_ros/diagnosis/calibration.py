@@ -29,6 +29,7 @@ pin.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -160,6 +161,8 @@ def describe(values: dict[str, float], least: float = 0.02) -> list[str]:
 
 
 
-def group(name: str) -> KnobGroup:
-    """The knob group of a candidate (``effect`` or ``effect:form``), or the calibration."""
-    return CALIBRATION if name == NAME else CANDIDATES[name]
+def group(name: str, sensors: Sequence[str] | None = None) -> KnobGroup:
+    """The knob group of a candidate (``effect`` or ``effect:form``), or the calibration; with
+    the knobs records measuring ``sensors`` can judge (:meth:`KnobGroup.judged`; None: all)."""
+    g = CALIBRATION if name == NAME else CANDIDATES[name]
+    return g if sensors is None else g.judged(sensors)

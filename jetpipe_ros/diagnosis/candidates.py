@@ -27,7 +27,9 @@ a turbulent, orifice-like leak (0.5) to a laminar one (1).
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -50,6 +52,10 @@ class Knob:
     #: the range is the knob's whole physical extent (a form's spread from 0 to 1), not a search
     #: limit: a fit at its edge is an answer, not a sign that the truth lies beyond
     extent: bool = False
+    #: signals that must all be measured for the records to judge the knob; without them it
+    #: moves nothing measured, or only what another knob moves, and is not fitted
+    #: (:meth:`KnobGroup.judged`)
+    needs: tuple[str, ...] = ()
 
     def to_value(self, z: float) -> float:
         """Map z in [0, 1] onto the range."""
@@ -87,12 +93,29 @@ class KnobGroup:
         """The unit-scaled vector of ``values`` (inverse of :meth:`values`)."""
         return np.array([k.to_unit(values[k.name]) for k in self.knobs])
 
+    def judged(self, sensors: Sequence[str]) -> KnobGroup:
+        """The group with only the knobs that records measuring ``sensors`` can judge
+        (:attr:`Knob.needs`); the others stay where the group changes nothing. With one
+        pressure sensor a second sensor's bias beyond the first's reads nothing measured (or,
+        with chamber 2's alone, the same as the common bias): fitted, it would take any value,
+        be reported as found, and cost the group a parameter it cannot use."""
+        knobs = tuple(k for k in self.knobs if set(k.needs) <= set(sensors))
+        return self if len(knobs) == len(self.knobs) else dataclasses.replace(self, knobs=knobs)
+
+    def fitted(self, values: dict[str, float]) -> tuple[Knob, ...]:
+        """The knobs among ``values`` (all, unless some were not judged)."""
+        return tuple(k for k in self.knobs if k.name in values)
+
+    def rest(self, values: dict[str, float]) -> np.ndarray:
+        """:meth:`start` of the knobs among ``values``."""
+        return np.array([k.to_unit(k.off) for k in self.fitted(values)])
+
     def pinned(self, values: dict[str, float], tolerance: float = 0.01) -> list[str]:
         """Knobs fitted within ``tolerance`` (of the unit-scaled range) of an edge of their
         search range: not the edge where the group changes nothing, nor the edge of a knob
         whose range is its whole physical extent. The truth may lie beyond such a knob."""
         out = []
-        for k in self.knobs:
+        for k in self.fitted(values):
             z, z_off = k.to_unit(values[k.name]), k.to_unit(k.off)
             edge = 0.0 if z <= tolerance else 1.0 if z >= 1.0 - tolerance else None
             if edge is not None and not k.extent and abs(edge - z_off) > tolerance:
@@ -103,7 +126,7 @@ class KnobGroup:
         """True when every knob but those spanning a form's extent lies within ``tolerance``
         (of the unit-scaled range) of the value where the group changes nothing."""
         return all(abs(k.to_unit(values[k.name]) - k.to_unit(k.off)) <= tolerance
-                   for k in self.knobs if not k.extent)
+                   for k in self.fitted(values) if not k.extent)
 
     def apply(self, params: ModelParams, values: dict[str, float]) -> ModelParams:
         """``params`` changed by this group at ``values``."""
@@ -247,7 +270,8 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     Candidate("moving_mass", (Knob("mass", 0.1, 10.0, 1.0, log=True),), {"mass": 3.0}),
     Candidate("sensor_dynamics", (Knob("time_constant", 0.0, 0.02, 0.0),
                                   Knob("bias", -2e4, 2e4, 0.0),
-                                  Knob("bias_difference", -2e4, 2e4, 0.0),
+                                  Knob("bias_difference", -2e4, 2e4, 0.0,
+                                       needs=("p1", "p2")),
                                   Knob("gain", -0.05, 0.05, 0.0),
                                   Knob("drift", -500.0, 500.0, 0.0)),
               {"time_constant": 0.005, "bias": 5e3, "drift": 0.0}),

@@ -124,6 +124,7 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
     (to 0.01 %) on any of the eight development records. Returns the fits alone by candidate,
     and the calibrated fits."""
     progress(f"fitting {len(names)} candidates alone and on the recalibrated model")
+    sensors = fitter.prepared.sensors
     n = len(names)
     fits = fitter.run([Job(nominal, (e,)) for e in names] + [Job(cal.params, (e,))
                                                              for e in names],
@@ -143,7 +144,8 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
                 best[j.name] = j
 
     plain = [(e, f) for e, f in todo if not CANDIDATES[e].carries]
-    keep(fitter.run([Job(nominal, f.groups, _inside(e, f.z), JOINT_BUDGET) for e, f in plain],
+    keep(fitter.run([Job(nominal, f.groups, _inside(e, f.z, sensors), JOINT_BUDGET)
+                     for e, f in plain],
                     [f"{e} + calibration, jointly" for e, _ in plain]))
     left = min((f.train.gap for f in best.values()), default=0.0)
     own = [(e, f) for e, f in plain if _removed(nom_train, alone[e].train) >= JOINT_MIN]
@@ -169,14 +171,14 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
                          CARRIER_BUDGET if CANDIDATES[e].carries else JOINT_BUDGET,
                          grid_base=np.concatenate([[k.to_unit(k.off) if k.name in reset else z
                                                     for k, z in zip(CALIBRATION.knobs, cal.z)],
-                                                   calibration.group(e).start()]))
+                                                   calibration.group(e, sensors).start()]))
                      for e, f, reset in again],
         [f"{e} + calibration, jointly, {', '.join(reset)} from nominal"
          for e, _, reset in again]))
     return alone, [best[f.name] for f in onto]
 
 
-def _inside(name: str, z: np.ndarray) -> np.ndarray:
+def _inside(name: str, z: np.ndarray, sensors: Sequence[str]) -> np.ndarray:
     """Where a candidate's joint fit with the calibration starts: ``z``, the recalibration's
     knobs then the candidate's as its fit on top of the recalibration left them; but with the
     candidate at its typical size when that fit ended where it changes nothing.
@@ -186,7 +188,7 @@ def _inside(name: str, z: np.ndarray) -> np.ndarray:
     exchange), and the joint fit stayed where it started (1.17 % of the spread left held out,
     where from 0.5, 1.2 or 2.4 W/K it reached 1.08 W/K from each and left 0.17 %). Knobs that
     span a form's extent keep their fitted value."""
-    cand = CANDIDATES[name]
+    cand = calibration.group(name, sensors)
     n = len(cand.knobs)
     fitted = cand.values(z[-n:])
     if not cand.vanishes(fitted):
@@ -290,7 +292,7 @@ def vanished(f: Fit, tolerance: float = 0.01) -> list[str]:
         return []
     z = f.knobs_by_group()
     return [g for g in f.effects
-            if np.max(np.abs(z[g] - calibration.group(g).start())) <= tolerance]
+            if np.max(np.abs(z[g] - CANDIDATES[g].rest(f.values[g]))) <= tolerance]
 
 
 def cross_check(rows: Sequence[Ranked], fitter: Fitter, nominal: ModelParams, nom_preds,

@@ -77,7 +77,7 @@ class Fit:
 
     def knobs_by_group(self) -> dict[str, np.ndarray]:
         """The unit-scaled knobs of each group."""
-        sizes = np.cumsum([len(group(g).knobs) for g in self.groups])[:-1]
+        sizes = np.cumsum([len(self.values[g]) for g in self.groups])[:-1]
         return dict(zip(self.groups, np.split(self.z, sizes)))
 
     def effect_values(self) -> dict[str, dict[str, float]]:
@@ -192,7 +192,8 @@ def with_nuisance(prepared: Prepared, nominal: ModelParams, fitted: Fit) -> Fit:
     """``fitted`` (which holds the calibration knobs) with the nuisance directions of
     ``prepared`` fitted on all records, and scored again."""
     began = time.perf_counter() - fitted.seconds
-    obj = _Objective(prepared, nominal, [group(g) for g in fitted.groups], budget=0)
+    obj = _Objective(prepared, nominal, [group(g, prepared.sensors) for g in fitted.groups],
+                     budget=0)
     obj.calls = fitted.evaluations
     return _scored(obj, _nuisance_fitted(obj, fitted.z), began)
 
@@ -310,7 +311,8 @@ def uncertainty(prepared: Prepared, nominal: ModelParams, fitted: Fit,
     (a delay between two sub-steps) has no standard error (None). ``groups`` are the fit's
     knob groups when they are not candidates or the calibration (looked up by name).
     """
-    groups = list(groups) if groups is not None else [group(g) for g in fitted.groups]
+    groups = (list(groups) if groups is not None else
+              [group(g, prepared.sensors) for g in fitted.groups])
     obj = _Objective(prepared, nominal, groups, budget=10**9)
     r0 = obj.residuals(fitted.z)
     jac = jacobian(obj.residuals, fitted.z, step)

@@ -67,7 +67,8 @@ class Job:
 
 def run_job(job: Job, prepared: Prepared, other: Prepared) -> Fit:
     """One fit: on ``prepared``, or on ``other`` (train and holdout exchanged) if swapped."""
-    return fit(other if job.swapped else prepared, job.base, [group(g) for g in job.groups],
+    data = other if job.swapped else prepared
+    return fit(data, job.base, [group(g, data.sensors) for g in job.groups],
                job.start, job.budget, job.grid_base)
 
 
