@@ -24,7 +24,9 @@ candidates are *indistinguishable* when the runner-up also explains the gap and 
 at most :data:`AMBIGUOUS` times the gap the winner leaves, or the winner's held-out advantage
 over it is not significant by the same test (paired t over the windows, or more than the noise
 floor); then the answer
-keeps the winner, lowers the confidence and names the experiment that separates them best.
+keeps the winner, lowers the confidence and names the experiment that separates them best (and
+the diagnosis lets both folds of a two-fold cross-validation choose between the two:
+:func:`jetpipe_ros.diagnosis.diagnose.second_fold`).
 Confidence is the winner's shrinkage times its margin over the runner-up, ln(runner-up's gap /
 winner's gap) / ln(4) capped at 1 (full when the runner-up leaves four times the winner's gap),
 or for ``none`` one minus the strongest evidence against it: the largest shrinkage any candidate
