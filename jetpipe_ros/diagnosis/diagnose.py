@@ -338,8 +338,10 @@ def second_fold(verdict: Verdict, ranking: Sequence[Ranked], fitter: Fitter,
     training (0.06 % against 0.19 %), and ranked second by its knob alone. On its second fold
     it leaves 0.54 % against the hose's 0.71 % (8623: 0.49 % against 0.51 %). Both folds are
     out of sample, so an extra knob pays for itself only by predicting data it was not fitted
-    to. Development: those two, and six ambiguous verdicts that were right (five transport
-    delays against a valve lag, a weighted-play hysteresis against a leak): kept."""
+    to. Development: those two, and five ambiguous verdicts that were right, all kept: three
+    transport delays against a valve lag (seeds 1213, 7411, 8623), a weighted-play hysteresis
+    against a leak (8623, the position alone), a constant supply against a sensor and a leak
+    (8623, one pressure)."""
     win, run = verdict.winner, verdict.runner_up
     if not (verdict.ambiguous and win is not None and run is not None):
         return verdict
