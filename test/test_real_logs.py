@@ -323,11 +323,11 @@ def test_a_delay_the_recalibration_imitates_on_the_position_alone_is_not_ruled_o
 def test_with_one_pressure_sensor_its_own_bias_is_fitted_and_no_second(tmp_path, kept):
     """Pressure transducers of their own dynamics (100 Hz, damping 0.8, written apart from the
     model) reading 4 kPa low (chamber 1) and 3 kPa high (chamber 2), one of them logged. The
-    sensor candidate fits the one sensor's bias (to 10 %) and no bias of a second sensor beyond
-    the first: with chamber 1's alone that knob moved nothing measured and was reported as
-    found all the same (5.1 kPa on a held-out record, no standard error); with chamber 2's
-    alone it reads as the common bias, so the two took any split of the 3 kPa. Every knob
-    fitted has a standard error."""
+    sensor candidate fits the one sensor's bias (to 5 %; found within 1.1 %) and no bias of a
+    second sensor beyond the first: with chamber 1's alone that knob moved nothing measured
+    and was reported as found all the same (5.1 kPa on a held-out record, no standard error);
+    with chamber 2's alone it reads as the common bias, so the two took any split of the 3 kPa.
+    Every knob fitted has a standard error."""
     from jetpipe_ros.diagnosis.calibration import group
     from jetpipe_ros.diagnosis.fit import fit, uncertainty
     from jetpipe_ros.plant import Plant, PlantSpec
@@ -343,6 +343,6 @@ def test_with_one_pressure_sensor_its_own_bias_is_fitted_and_no_second(tmp_path,
     found = fit(prepared, ModelParams(), [group("sensor_dynamics", prepared.sensors)])
     values = found.values["sensor_dynamics"]
     assert "bias_difference" not in values
-    assert values["bias"] == pytest.approx(-4e3 if kept == "p1" else 3e3, rel=0.1)
+    assert values["bias"] == pytest.approx(-4e3 if kept == "p1" else 3e3, rel=0.05)
     errors = uncertainty(prepared, ModelParams(), found)["sensor_dynamics"]
     assert set(errors) == set(values) and all(e is not None for e in errors.values())

@@ -42,8 +42,7 @@ from jetpipe_ros.diagnosis.separation import (adopt, separating_experiment, stan
                                               words)
 from jetpipe_ros.diagnosis.prediction import HORIZON, persistence
 from jetpipe_ros.diagnosis.score import (METRIC, Score, difference_gap, effective_samples,
-                                         predict_all, score,
-                                         window_errors)
+                                         predict_all, score, window_errors)
 from jetpipe_ros.diagnosis.verdict import (NOISE_GAP, Ranked, Settled, Verdict, decide,
                                            needs_pairs, paired_t, rank, settle)
 from jetpipe_ros.model import EFFECTS, ModelParams
