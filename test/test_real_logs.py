@@ -237,6 +237,13 @@ def test_hardware_outside_the_model_class_names_no_effect(tmp_path, capsys):
     assert result["gap"]["augmented"] >= result["gap"]["persistence"]
     assert result["data"]["sensors"] == ["y", "p1"]
     assert "sensor_dynamics" not in result["data"]["cannot_judge"]
+    # The report gives noise for the signals measured only, and a replay with nothing to compare
+    # (the mechanics need both pressures) as not judged rather than as a gap.
+    assert result["localization"]["subsystems"]["mechanics"] is None
+    report = (tmp_path / "out" / "report.html").read_text()
+    noise = report.split("Estimated sensor noise: ")[1].split("</p>")[0]
+    assert "position" in noise and "chamber 1 pressure" in noise and "chamber 2" not in noise
+    assert "mechanics (driven by measured pressures)</td><td>not judged: too few sensors" in report
 
 
 def test_a_valve_delay_seen_by_the_position_alone(tmp_path):

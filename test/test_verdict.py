@@ -344,7 +344,12 @@ def test_an_ambiguous_verdict_goes_to_the_better_of_both_folds(rng, hose, line, 
     ranking = rank(fits, cal.holdout, nom, 1e-3)
     first = decide(ranking, cal.holdout, nom, None)
     assert first.winner.fit.name == "valve_delay:hose" and first.ambiguous
-    v = second_fold(first, ranking, _SecondFold({names["hose"]: hose, names["line"]: line}),
-                    ModelParams(), cal, None, lambda message: None)
+    v, listed = second_fold(first, ranking,
+                            _SecondFold({names["hose"]: hose, names["line"]: line}),
+                            ModelParams(), cal, None, lambda message: None)
     assert v.winner.fit is fits[kept == "line"] and v.ambiguous
     assert ("two-fold" in v.reason) == (kept == "line")
+    # What is listed (and drawn) first is what is named; each row holds its second fold's gap.
+    assert listed[0] is v.winner and sorted(map(id, listed)) == sorted(map(id, ranking))
+    assert {r.fit.name: r.second_fold for r in listed} == pytest.approx(
+        {"valve_delay:hose": hose, "supply_pressure:line": line})

@@ -323,12 +323,14 @@ def cross_check(rows: Sequence[Ranked], fitter: Fitter, nominal: ModelParams, no
 
 def second_fold(verdict: Verdict, ranking: Sequence[Ranked], fitter: Fitter,
                 nominal: ModelParams, cal: Fit, floor: np.ndarray | None,
-                progress: Callable[[str], None]) -> Verdict:
+                progress: Callable[[str], None]) -> tuple[Verdict, list[Ranked]]:
     """A verdict the held-out data cannot tell from its runner-up (:attr:`Verdict.ambiguous`)
     decided by both folds of a two-fold cross-validation: the winner and the runner-up each
     refitted on the holdout (from their fits) and judged on the training data; the mean square
     error over both folds, each weighted by its effective samples
-    (:func:`score.effective_samples`), is lower for the one kept.
+    (:func:`score.effective_samples`), is lower for the one kept. Returns the verdict and the
+    ranking, the one kept first (each of the two rows holds its second fold's gap,
+    :attr:`Ranked.second_fold`), so that what is drawn and listed first is what is named.
 
     The ranking charges each knob log(n) of held-out evidence (:func:`verdict.rank`): right
     between clearly different candidates, blunt between two the holdout cannot separate. With
@@ -343,7 +345,7 @@ def second_fold(verdict: Verdict, ranking: Sequence[Ranked], fitter: Fitter,
     (8623, one pressure)."""
     win, run = verdict.winner, verdict.runner_up
     if not (verdict.ambiguous and win is not None and run is not None):
-        return verdict
+        return verdict, list(ranking)
     dt = fitter.prepared.dt
     jobs = [Job(nominal, r.fit.groups, r.fit.z, JOINT_BUDGET if r.fit.calibrated else BUDGET,
                 swapped=True) for r in (win, run)]
@@ -357,16 +359,17 @@ def second_fold(verdict: Verdict, ranking: Sequence[Ranked], fitter: Fitter,
     progress(f"second fold (fitted on the holdout, judged on the training data): "
              f"{win.fit.name} {folds[0].holdout.gap:.2f} %, {run.fit.name} "
              f"{folds[1].holdout.gap:.2f} %")
+    win.second_fold, run.second_fold = folds[0].holdout.gap, folds[1].holdout.gap
     if both(run, folds[1]) >= both(win, folds[0]):
-        return verdict
-    again = decide([run, *(r for r in ranking if r is not run)], cal.holdout,
-                   cal.holdout_windows, floor)
+        return verdict, list(ranking)
+    turned = [run, *(r for r in ranking if r is not run)]
+    again = decide(turned, cal.holdout, cal.holdout_windows, floor)
     if again.winner is not run:
-        return verdict
+        return verdict, list(ranking)
     again.reason += (f"; kept over {win.fit.name} by both folds of a two-fold cross-validation "
                      f"(fitted on the holdout, judged on the training data: {run.fit.name} "
                      f"{folds[1].holdout.gap:.2f} %, {win.fit.name} {folds[0].holdout.gap:.2f} %)")
-    return again
+    return again, turned
 
 
 def _label(f: Fit) -> str:
@@ -476,8 +479,9 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
             ranking = rank(on_cal, cal.holdout, cal.holdout_windows, dt)
         cross_check([cal_row, *ranking[:2], *alone_ranking[:2]], fitter, nominal, nom_all,
                     progress)
-        on_cal_verdict = second_fold(decide(ranking, cal.holdout, cal.holdout_windows, floor),
-                                     ranking, fitter, nominal, cal, floor, progress)
+        on_cal_verdict, ranking = second_fold(
+            decide(ranking, cal.holdout, cal.holdout_windows, floor), ranking, fitter, nominal,
+            cal, floor, progress)
         alone_verdict = decide(alone_ranking, nom_hold, nom_windows, floor)
         given = effect_alone = None
         if on_cal_verdict.winner is not None:

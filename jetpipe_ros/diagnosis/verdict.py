@@ -76,6 +76,9 @@ class Ranked:
     bic: float
     #: paired t of the cross-check (fitted on the holdout, judged on the training data), if run
     t_cross: float | None = None
+    #: held-out gap of its second fold (fitted on the holdout, judged on the training data) [%],
+    #: if run (:func:`jetpipe_ros.diagnosis.diagnose.second_fold`)
+    second_fold: float | None = None
 
     @property
     def significant(self) -> bool:
@@ -107,7 +110,7 @@ class Ranked:
                 "params": values if len(values) > 1 else values[effects[0]],
                 "train_gap": self.fit.train.gap, "holdout_gap": self.fit.holdout.gap,
                 "shrinkage": self.shrinkage, "explains": self.explains, "t": self.t,
-                "t_cross_check": self.t_cross,
+                "t_cross_check": self.t_cross, "second_fold_gap": self.second_fold,
                 "removed_over_noise_floor": self.removed_over_floor,
                 "holdout_by_signal": self.fit.holdout.to_json(), "bic": self.bic,
                 "evaluations": self.fit.evaluations, "fit_seconds": self.fit.seconds}

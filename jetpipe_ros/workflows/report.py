@@ -359,7 +359,7 @@ def equation_words(result: dict) -> str:
 def _table(rows: list[list], header: list[str]) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = "".join("<tr>" + "".join(f"<td>{_cell(c)}</td>" for c in r) + "</tr>" for r in rows)
-    return f"<table><tr>{head}</tr>{body}</table>"
+    return f"<div class='wide'><table><tr>{head}</tr>{body}</table></div>"
 
 
 @dataclass(frozen=True)
@@ -374,11 +374,12 @@ def _params_cell(params: dict) -> _Html:
     in the open, the calibration knobs fitted beside them folded away (the augmented model's
     are in the calibration figure); neither spread over the row's width."""
     flat, knobs = {}, {}
+    effects = [k for k, v in params.items() if isinstance(v, dict) and k != CALIBRATION_GROUP]
     for k, v in params.items():
         if k == CALIBRATION_GROUP and isinstance(v, dict):
             knobs = v
-        elif isinstance(v, dict):
-            flat.update({f"{k}.{kk}": vv for kk, vv in v.items()})
+        elif isinstance(v, dict):  # a pair's knobs under their effect's name
+            flat.update({f"{k}.{kk}" if len(effects) > 1 else kk: vv for kk, vv in v.items()})
         else:
             flat[k] = v
 
@@ -388,7 +389,19 @@ def _params_cell(params: dict) -> _Html:
 
     folded = (f"<details><summary>calibration</summary>{text(knobs)}</details>"
               if knobs else "")
-    return _Html(text(flat) + folded)
+    return _Html(f"<div class='params'>{text(flat)}{folded}</div>")
+
+
+def _breakable(name: str) -> _Html:
+    """A candidate's name that may wrap after its ':' and '+' (a long one had widened the
+    ranking table past the page)."""
+    return _Html(html.escape(name).replace(":", ":<wbr>").replace("+", "+<wbr>"))
+
+
+def _noise_words(signal: str, sigma: float) -> str:
+    """A measured signal's estimated white noise in words: ``sigma`` in m or Pa."""
+    return (f"position {sigma * 1e6:.1f} um" if signal == "y" else
+            f"chamber {signal[1]} pressure {sigma:.0f} Pa")
 
 
 def _cell(c) -> str:
@@ -439,16 +452,21 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
     sig_rows = [[s, loc["signals"]["nominal"].get(s), loc["signals"]["augmented"].get(s)]
                 for s in ("gap", "y", "p1", "p2") if s in loc["signals"]["nominal"]]
     sub = loc["subsystems"]
+    unjudged = "not judged: too few sensors"
     sub_rows = [["valve and chambers (driven by measured motion)",
-                 sub["valve_and_chambers"]["gap"] if sub["valve_and_chambers"] else None],
+                 sub["valve_and_chambers"]["gap"] if sub["valve_and_chambers"] else unjudged],
                 ["mechanics (driven by measured pressures)",
-                 sub["mechanics"]["gap"] if sub["mechanics"] else None],
+                 sub["mechanics"]["gap"] if sub["mechanics"] else unjudged],
                 ["sensors: steady pressure offset [Pa]",
                  sub["sensors"]["steady_pressure_offset_pa"]]]
     paper = result["gap"]["paper_metrics"]
     metric_rows = [[k, paper["nominal"].get(k), paper["augmented"].get(k)]
                    for k in paper["nominal"]]
-    rank_rows = [[r["candidate"], r["subsystem"], r["train_gap"], r["holdout_gap"],
+    # The second fold (fitted on the holdout, judged on the training data) is run only for an
+    # ambiguous verdict's two rows: its column is shown only then.
+    folds = any(r.get("second_fold_gap") is not None for r in result["ranking"])
+    rank_rows = [[_breakable(r["candidate"]), r["subsystem"], r["train_gap"], r["holdout_gap"],
+                  *([r.get("second_fold_gap")] if folds else []),
                   f"{100 * r['shrinkage']:.0f} %", r["t"], r["t_cross_check"],
                   "yes" if r["explains"] else "no",
                   f"{100 * r['alone']['shrinkage']:.0f} %" if r["alone"] else None,
@@ -463,11 +481,13 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
                  imitated[e]["left_gap_pct"] if e in imitated else "-"]
                 for e, x in vis.items()]
     data = result["data"]
+    sensors = data.get("sensors", ["y", "p1", "p2"])
     exp_rows = [[e["name"], e["piston"], e["train_s"], e["holdout_s"]]
                 for e in data["experiments"]]
     style = ("body{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}"
              "table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #ccc;"
              "padding:2px 8px;font-size:90%}th{background:#f2f2f2}img{max-width:100%}"
+             ".params{overflow-wrap:anywhere;min-width:12em}.wide{overflow-x:auto}"
              ".summary{background:#f5f8fc;border-left:4px solid #1f77b4;padding:0.5em 1em}")
     parts = [
         "<!DOCTYPE html><html><head><meta charset='utf-8'>",
@@ -489,6 +509,7 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
         f"{loc['horizon_s']:g}-s prediction horizons.</p>",
         ranking_figure(result),
         _table(rank_rows, ["candidate", "subsystem", "train gap %", "held-out gap %",
+                           *(["second fold gap %"] if folds else []),
                            "shrinkage", "paired t", "t cross-check", "explains",
                            "shrinkage alone", "fitted parameters"]),
         "<h2>Model against data</h2>", overlay_figure(prepared, preds, result),
@@ -514,9 +535,8 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
                           "left after the knobs imitate it [%]"]),
         "<h2>Data</h2>",
         f"<p>Split: {html.escape(data['split'])}. Sample time {data['sample_time_s'] * 1e3:g} "
-        f"ms. Signals measured: {', '.join(data.get('sensors', ['y', 'p1', 'p2']))}. "
-        f"Estimated sensor noise: position {data['noise']['y'] * 1e6:.1f} um, pressures "
-        f"{data['noise']['p1']:.0f} / {data['noise']['p2']:.0f} Pa.</p>",
+        f"ms. Signals measured: {', '.join(sensors)}. Estimated sensor noise: "
+        f"{', '.join(_noise_words(s, data['noise'][s]) for s in sensors)}.</p>",
         "".join(f"<p>Note: {html.escape(n)}.</p>" for n in data["notes"]),
         "<h3>What the diagnosis corrected in the records</h3>",
         "<ul>" + "".join(f"<li>{html.escape(c)}</li>" for c in data.get("corrections", []))
