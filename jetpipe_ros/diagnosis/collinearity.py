@@ -30,22 +30,34 @@ out, and the diagnosis says so.
 Linear in the knobs' logs and in the effect's size: it asks whether the directions are
 parallel, not whether a fit would land there (that is :mod:`separation`'s stand-ins, for the
 knobs that did move).
+
+What a sensor the rig lacks would show (:func:`with_added_sensors`): for a candidate imitated on
+records without one or both chamber pressures, the same check on the records as a rig with that
+pressure sensor would have logged them. The pressure it would have read is the recalibrated
+model's chambers replayed from the measured motion and command (:mod:`prediction`'s
+``chambers`` mode, the observer that restarts an unmeasured pressure), its noise the model's
+pressure sensor's (``sensors.pressure_sigma``), its scale the replayed pressure's spread. A
+leftover above :data:`verdict.NOISE_GAP` there says which sensor would tell the effect from
+parameters that are off on the same experiments: with the position alone a 3 ms valve delay is
+imitated, with either chamber's pressure it is not.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from scipy.optimize import lsq_linear
 
 from jetpipe_ros.diagnosis.calibration import CALIBRATION, SPREAD
 from jetpipe_ros.diagnosis.candidates import Candidate, effect_of
-from jetpipe_ros.diagnosis.data import Prepared
+from jetpipe_ros.diagnosis.data import MIN_SCALE, Prepared, smoothed
 from jetpipe_ros.diagnosis.fit import Fit
 from jetpipe_ros.diagnosis.nuisance import calibration_jacobian
-from jetpipe_ros.diagnosis.score import effective_samples, predict_all, residual_vector
+from jetpipe_ros.diagnosis.prediction import predict
+from jetpipe_ros.diagnosis.score import effective_samples, predict_all, residual_vector, score
 from jetpipe_ros.diagnosis.verdict import NOISE_GAP
 from jetpipe_ros.model import ModelParams
 
@@ -89,6 +101,55 @@ def imitations(prepared: Prepared, nominal: ModelParams, recalibrated: Fit,
     return out
 
 
+def with_added_sensors(prepared: Prepared, nominal: ModelParams, recalibrated: Fit,
+                       candidates: Sequence[Candidate], found: dict[str, dict]) -> None:
+    """For each of ``candidates`` that :func:`imitations` found imitated (``found``), on records
+    that lack a chamber pressure: the gap [%] the knobs' best imitation would leave on the same
+    experiments with each pressure sensor the records lack added, and with both where both are
+    missing, in ``found[name]["with_sensors"]`` (by the signals added, joined by ``+``)."""
+    hidden = [c for c in candidates if found.get(c.name, {}).get("imitated")]
+    missing = [s for s in ("p1", "p2") if s not in prepared.sensors]
+    if not hidden or not missing:
+        return
+    for added in [(s,) for s in missing] + ([tuple(missing)] if len(missing) > 1 else []):
+        rig = _as_logged_with(prepared, recalibrated.params, added,
+                              nominal["sensors.pressure_sigma"])
+        train = score(rig, predict_all(recalibrated.params, rig, "train"), "train")
+        seen = imitations(rig, nominal, dataclasses.replace(recalibrated, train=train), hidden)
+        for c in hidden:
+            found[c.name].setdefault("with_sensors", {})["+".join(added)] = \
+                seen[c.name]["left_gap_pct"]
+
+
+def _as_logged_with(prepared: Prepared, params: ModelParams, added: Sequence[str],
+                    sigma: float) -> Prepared:
+    """``prepared`` as a rig that also logged the pressures ``added`` would have recorded it:
+    each the chambers of ``params`` replayed from the measured motion and command, with noise
+    ``sigma`` [Pa] and the replayed pressure's spread as its scale."""
+    records, read = [], {s: [] for s in added}
+    for rec in prepared.records:
+        new = [s for s in added if not rec.measured(s)]
+        if not new or rec.regulated:  # a regulated test's pressures are the regulators'
+            records.append(rec)
+            continue
+        replay = predict(params, rec, prepared.dt, "chambers")
+        logged = {s: replay.signal(s) for s in new}
+        for s, x in logged.items():
+            read[s].append(x)
+        records.append(dataclasses.replace(
+            rec, **logged, smooth={**rec.smooth, **{s: smoothed(x, prepared.dt)
+                                                    for s, x in logged.items()}},
+            sensors=(*rec.sensors, *new)))
+    scale, noise = dict(prepared.scale), dict(prepared.noise)
+    for s, xs in read.items():
+        if xs:
+            scale[s] = max(float(np.std(np.concatenate(xs))), MIN_SCALE[s])
+            noise[s] = sigma
+    floor = {s: f for s, f in prepared.floor.items() if s not in added}
+    return dataclasses.replace(prepared, records=records, scale=scale, noise=noise, floor=floor,
+                               floor_windows=None)
+
+
 def imitated_effects(found: dict[str, dict]) -> dict[str, dict]:
     """The imitated candidates of :func:`imitations`, one per effect (its form the knobs
     imitate best), by effect name."""
@@ -99,3 +160,31 @@ def imitated_effects(found: dict[str, dict]) -> dict[str, dict]:
                                 or row["left_gap_pct"] < out[effect]["left_gap_pct"]):
             out[effect] = {"candidate": name, **row}
     return out
+
+
+#: The pressure sensors a rig may add, in words (keys of ``with_sensors``).
+ADDED = {"p1": "chamber 1's", "p2": "chamber 2's", "p1+p2": "both"}
+
+
+def sensor_words(hidden: Mapping[str, dict]) -> str:
+    """Words for what a pressure sensor the records lack would tell of the effects ``hidden``
+    (:func:`imitated_effects` after :func:`with_added_sensors`): the leftover of each
+    imitation with each sensor added, and the effects that not even all the missing pressures
+    would tell from parameters that are off."""
+    rows = {e: r["with_sensors"] for e, r in sorted(hidden.items()) if r.get("with_sensors")}
+    if not rows:
+        return ""
+    keys = list(next(iter(rows.values())))
+    told = [e for e, added in rows.items() if max(added.values()) >= NOISE_GAP]
+    words = ""
+    if told:
+        words = (f"; logged with a chamber pressure as well, the same experiments would tell "
+                 f"{', '.join(told)} (left after the imitation with "
+                 f"{' / '.join(ADDED[k] for k in keys)}: "
+                 + ", ".join(f"{e} {' / '.join(f'{rows[e][k]:.2f}' for k in keys)} %"
+                             for e in told) + ")")
+    if len(told) < len(rows):
+        most = keys[-1]  # both, or the one missing
+        words += (f"; not even {ADDED[most]} {'pressures' if '+' in most else 'pressure'} "
+                  f"would tell {', '.join(e for e in rows if e not in told)}")
+    return words

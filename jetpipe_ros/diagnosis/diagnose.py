@@ -6,7 +6,8 @@ Steps, each reported as progress: prepare and split the records and measure thei
 score the nominal model and locate its gap (signals, subsystems, regimes, frequency bands); check
 which candidates the experiments could show at all; recalibrate the nominal parameters
 (:mod:`calibration`) on the training data and check which candidates the recalibration could
-imitate on these records (:mod:`collinearity`); fit every candidate alone and on top of the
+imitate on these records, and which pressure sensor the rig lacks would tell them apart
+(:mod:`collinearity`); fit every candidate alone and on top of the
 recalibrated model, refit the most promising jointly with the calibration, and score everything
 on the held-out data; try pairs when one effect leaves a significant gap; cross-check, with the
 roles of the data exchanged, what the short holdout cannot confirm alone; decide which of
@@ -30,7 +31,8 @@ from jetpipe_ros.diagnosis import calibration
 from jetpipe_ros.diagnosis.alignment import Alignment, align
 from jetpipe_ros.diagnosis.calibration import CALIBRATION
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate, combinable, effect_of
-from jetpipe_ros.diagnosis.collinearity import imitated_effects, imitations
+from jetpipe_ros.diagnosis.collinearity import (imitated_effects, imitations, sensor_words,
+                                                with_added_sensors)
 from jetpipe_ros.diagnosis.data import Prepared, prepare, swapped
 from jetpipe_ros.diagnosis.fit import BUDGET, Fit, stacked, uncertainty, with_nuisance
 from jetpipe_ros.diagnosis.jobs import IN_PROCESS, Fitter, Job, Workers, run_job
@@ -461,8 +463,9 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
              f"({len(CALIBRATION.knobs)} knobs)")
     cal = recalibrate(prepared, nominal, progress)
     progress("which candidates the recalibration could imitate on these records")
-    imitation = imitations(prepared, nominal, cal,
-                           [c for c in candidates if seen[c.name] >= NOISE_GAP])
+    visible = [c for c in candidates if seen[c.name] >= NOISE_GAP]
+    imitation = imitations(prepared, nominal, cal, visible)
+    with_added_sensors(prepared, nominal, cal, visible, imitation)
     with Fitter(prepared, swapped(prepared), workers, progress) as fitter:
         (cal_row,) = rank([cal], nom_hold, nom_windows, dt)
         progress(f"recalibrated: held-out gap {nom_hold.gap:.2f} % -> {cal.holdout.gap:.2f} % "
@@ -573,7 +576,8 @@ def _not_ruled_out(hidden: Mapping[str, dict]) -> str:
                      f"{row['left_gap_pct']:.2f} %" for _, row in sorted(hidden.items()))
     return (f"these records cannot rule out {', '.join(sorted(hidden))}: at its typical size "
             f"the recalibration imitates each to within the {NOISE_GAP} % that counts as beyond "
-            f"noise ({each}; the knobs in visibility.imitated_by_recalibration)")
+            f"noise ({each}; the knobs in visibility.imitated_by_recalibration)"
+            + sensor_words(hidden))
 
 
 def _gauge_words(verdict: Mapping) -> str:

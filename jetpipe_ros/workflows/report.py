@@ -477,8 +477,13 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
                  f"{cal['recalibration_alone'][k]:.3f}"] for k, x in cal["knobs"].items()]
     vis = result["visibility"]["at_typical_size_gap_pct"]
     imitated = result["visibility"].get("imitated_by_recalibration", {})
+    # With a chamber pressure missing: what the imitation would leave with it logged.
+    added = any("with_sensors" in row for row in imitated.values())
     vis_rows = [[e, x, "yes" if x >= result["visibility"]["threshold_gap_pct"] else "no",
-                 imitated[e]["left_gap_pct"] if e in imitated else "-"]
+                 imitated[e]["left_gap_pct"] if e in imitated else "-",
+                 *([", ".join(f"{k} {v:.2f}" for k, v in
+                              imitated.get(e, {}).get("with_sensors", {}).items()) or "-"]
+                   if added else [])]
                 for e, x in vis.items()]
     data = result["data"]
     sensors = data.get("sensors", ["y", "p1", "p2"])
@@ -530,9 +535,13 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
         "on these experiments; below the 0.5 % that counts as beyond noise the data cannot tell "
         "whether it is there. The last column is what is left of it once the recalibration's "
         "knobs imitate it as best they can: below 0.5 %, an answer of no effect does not rule "
-        "it out.</p>",
+        "it out." + (" For those, the last column is what would be left on the same "
+                     "experiments had the rig also logged a chamber's pressure (p1, p2) or both: "
+                     "above 0.5 %, that sensor would tell it from parameters that are off."
+                     if added else "") + "</p>",
         _table(vis_rows, ["candidate", "gap at typical size [%]", "visible",
-                          "left after the knobs imitate it [%]"]),
+                          "left after the knobs imitate it [%]",
+                          *(["left were these pressures logged too [%]"] if added else [])]),
         "<h2>Data</h2>",
         f"<p>Split: {html.escape(data['split'])}. Sample time {data['sample_time_s'] * 1e3:g} "
         f"ms. Signals measured: {', '.join(sensors)}. Estimated sensor noise: "
