@@ -44,3 +44,24 @@ def test_a_ranking_rows_calibration_knobs_are_folded_away():
     assert shown.split("=")[0] in row["params"][effect] and "calibration" not in shown
     assert folded.endswith("</details>") and folded.count("=") == len(
         row["params"]["calibration"])
+
+
+def test_what_is_not_ruled_out_says_which_pressure_sensor_would_tell_it():
+    """A `none` that cannot rule out effects the recalibration imitates on a position-only
+    record: the summary names the pressure sensor that would tell each (what the imitation
+    leaves with it logged is above the 0.5 % bar), and for one no sensor would, another record."""
+    result = json.loads(gzip.decompress(STORED.read_bytes()))
+    row = {"signature_gap_pct": 1.0, "left_gap_pct": 0.2, "imitated": True, "knobs": {}}
+    result["visibility"]["not_ruled_out"] = ["thermal", "valve_delay", "valve_lag"]
+    result["visibility"]["imitated_by_recalibration"] = {
+        "valve_delay": {**row, "with_sensors": {"p1": 2.02, "p2": 0.31, "p1+p2": 2.3}},
+        "thermal:polytropic": {**row, "with_sensors": {"p1": 0.2, "p2": 0.3, "p1+p2": 0.7}},
+        "valve_lag:first_order": {**row, "with_sensors": {"p1": 0.2, "p2": 0.3, "p1+p2": 0.4}}}
+    text = summary(result)
+    said = text.split("<b>Not ruled out</b>")[1].split("</p>")[0]
+    assert "logged with chamber 1's pressure as well, these experiments would tell " \
+           "<code>valve_delay</code>" in said
+    assert "logged with both pressures as well, these experiments would tell " \
+           "<code>thermal</code>" in said
+    assert said.endswith("a record with another sensor or experiment is needed to tell "
+                         "<code>valve_lag</code>.")
