@@ -10,7 +10,7 @@ from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.diagnosis import residuals
 from jetpipe_ros.diagnosis.data import Prepared, prepare
 from jetpipe_ros.diagnosis.noise_floor import calibrate, twin
-from jetpipe_ros.diagnosis.placement import PLACES, _by_candidates, place
+from jetpipe_ros.diagnosis.placement import PLACES, by_candidates, place
 from jetpipe_ros.model import ModelParams
 from jetpipe_ros.plant import Plant, PlantSpec
 from jetpipe_ros.plant.logger import log
@@ -99,7 +99,7 @@ def test_with_the_position_alone_the_candidates_place_it(tmp_path):
     assert max(e["removed"] for e in found["experiments"]) < PLACES
     assert found["subsystem"] == "mechanics"
     assert found["placed_by"] == "friction_dynamics:lugre" and "60 %" in found["words"]
-    unplaced = _by_candidates((), "no one measured signal explains it")
+    unplaced = by_candidates((), "no one measured signal explains it")
     assert unplaced["subsystem"] == "none" and "cannot place it" in unplaced["words"]
 
 

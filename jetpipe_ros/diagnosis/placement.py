@@ -294,7 +294,7 @@ def _null(prepared: Prepared, params: ModelParams) -> dict:
     return {"subsystem": "valve", "signal": "u", "null_offset_v": u0, "holdout_gap": gap}
 
 
-def _by_candidates(leads: Sequence[tuple[str, str, float]], words: str) -> dict:
+def by_candidates(leads: Sequence[tuple[str, str, float]], words: str) -> dict:
     """The subsystem of the candidate that removes the largest share of the gap, of ``leads``
     (candidate, its subsystem, held-out share removed; only those that explain part of the
     gap), placed so when no replay can judge; "none" when no candidate explains any of it."""
@@ -343,7 +343,7 @@ def place(prepared: Prepared, params: ModelParams,
         words += "; the mechanics cannot be replayed apart (it needs both pressures measured)"
         if replays["valve_and_chambers"] is None:
             words += "; nor can the chambers (no chamber pressure is measured)"
-            return {**out, **_by_candidates(leads, words)}
+            return {**out, **by_candidates(leads, words)}
         chambers = replays["valve_and_chambers"]["gap"]
         # One replay against the whole model on the same signals: fed the measured motion,
         # the valve and chambers keep a gap of their own if the cause is theirs; if the
@@ -358,7 +358,7 @@ def place(prepared: Prepared, params: ModelParams,
                     "words": words + ": the motion carries the error, so it starts in the "
                                      "mechanics (by elimination: not replayed apart)"}
         else:
-            return {**out, **_by_candidates(leads, words + ", both within noise")}
+            return {**out, **by_candidates(leads, words + ", both within noise")}
     else:
         mechanics = replays["mechanics"]["gap"]
         chambers = replays["valve_and_chambers"]["gap"]
