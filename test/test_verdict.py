@@ -346,7 +346,7 @@ def test_an_ambiguous_verdict_goes_to_the_better_of_both_folds(rng, hose, line, 
     assert first.winner.fit.name == "valve_delay:hose" and first.ambiguous
     v, listed = second_fold(first, ranking,
                             _SecondFold({names["hose"]: hose, names["line"]: line}),
-                            ModelParams(), cal, None, lambda message: None)
+                            ModelParams(), (cal.holdout, nom), None, lambda message: None)
     assert v.winner.fit is fits[kept == "line"] and v.ambiguous
     assert ("two-fold" in v.reason) == (kept == "line")
     # What is listed (and drawn) first is what is named; each row holds its second fold's gap.

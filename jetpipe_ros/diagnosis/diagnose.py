@@ -324,15 +324,18 @@ def cross_check(rows: Sequence[Ranked], fitter: Fitter, nominal: ModelParams, no
 
 
 def second_fold(verdict: Verdict, ranking: Sequence[Ranked], fitter: Fitter,
-                nominal: ModelParams, cal: Fit, floor: np.ndarray | None,
+                nominal: ModelParams, base: tuple[Score, np.ndarray], floor: np.ndarray | None,
                 progress: Callable[[str], None]) -> tuple[Verdict, list[Ranked]]:
     """A verdict the held-out data cannot tell from its runner-up (:attr:`Verdict.ambiguous`)
     decided by both folds of a two-fold cross-validation: the winner and the runner-up each
     refitted on the holdout (from their fits) and judged on the training data; the mean square
     error over both folds, each weighted by its effective samples
-    (:func:`score.effective_samples`), is lower for the one kept. Returns the verdict and the
-    ranking, the one kept first (each of the two rows holds its second fold's gap,
-    :attr:`Ranked.second_fold`), so that what is drawn and listed first is what is named.
+    (:func:`score.effective_samples`), is lower for the one kept. ``ranking`` is judged against
+    ``base``, the held-out score and window errors of the model its candidates were fitted on
+    (the recalibrated one, or the nominal one for the candidates alone). Returns
+    the verdict and the ranking, the one kept first (each of the two rows holds its second
+    fold's gap, :attr:`Ranked.second_fold`), so that what is drawn and listed first is what is
+    named.
 
     The ranking charges each knob log(n) of held-out evidence (:func:`verdict.rank`): right
     between clearly different candidates, blunt between two the holdout cannot separate. With
@@ -365,7 +368,7 @@ def second_fold(verdict: Verdict, ranking: Sequence[Ranked], fitter: Fitter,
     if both(run, folds[1]) >= both(win, folds[0]):
         return verdict, list(ranking)
     turned = [run, *(r for r in ranking if r is not run)]
-    again = decide(turned, cal.holdout, cal.holdout_windows, floor)
+    again = decide(turned, *base, floor)
     if again.winner is not run:
         return verdict, list(ranking)
     again.reason += (f"; kept over {win.fit.name} by both folds of a two-fold cross-validation "
@@ -484,8 +487,10 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
                     progress)
         on_cal_verdict, ranking = second_fold(
             decide(ranking, cal.holdout, cal.holdout_windows, floor), ranking, fitter, nominal,
-            cal, floor, progress)
-        alone_verdict = decide(alone_ranking, nom_hold, nom_windows, floor)
+            (cal.holdout, cal.holdout_windows), floor, progress)
+        alone_verdict, alone_ranking = second_fold(
+            decide(alone_ranking, nom_hold, nom_windows, floor), alone_ranking, fitter, nominal,
+            (nom_hold, nom_windows), floor, progress)
         given = effect_alone = None
         if on_cal_verdict.winner is not None:
             # Is the recalibration needed beside the effect? The effect alone, without it:
