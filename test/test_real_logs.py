@@ -340,6 +340,7 @@ def test_which_pressure_sensor_would_tell_an_imitated_delay(parameters_only_reca
     from jetpipe_ros.diagnosis.collinearity import (imitated_effects, imitations, sensor_words,
                                                     with_added_sensors)
     from jetpipe_ros.diagnosis.data import MIN_SCALE
+    from jetpipe_ros.diagnosis.noise_floor import calibrate
     from jetpipe_ros.diagnosis.score import predict_all, score
     from jetpipe_ros.diagnosis.verdict import NOISE_GAP
 
@@ -361,8 +362,8 @@ def test_which_pressure_sensor_would_tell_an_imitated_delay(parameters_only_reca
     records = [r for r in both.records if r.name in names]
     scale = {**both.scale, **{s: max(float(np.std(np.concatenate([r.signal(s) for r in records]))),
                                     MIN_SCALE[s]) for s in ("p1", "p2")}}
-    logged = dataclasses.replace(both, records=records, scale=scale,
-                                 floor={"y": position.floor["y"]})
+    logged = dataclasses.replace(both, records=records, scale=scale)
+    logged.floor, logged.floor_windows = calibrate(logged, cal.params)
     train = score(logged, predict_all(cal.params, logged, "train"), "train")
     real = imitations(logged, ModelParams(), dataclasses.replace(cal, train=train), delay)
     assert added["p1+p2"] == pytest.approx(real["valve_delay"]["left_gap_pct"], rel=0.15)

@@ -36,7 +36,8 @@ records without one or both chamber pressures, the same check on the records as 
 pressure sensor would have logged them. The pressure it would have read is the recalibrated
 model's chambers replayed from the measured motion and command (:mod:`prediction`'s
 ``chambers`` mode, the observer that restarts an unmeasured pressure), its noise the model's
-pressure sensor's (``sensors.pressure_sigma``), its scale the replayed pressure's spread. A
+pressure sensor's (``sensors.pressure_sigma``), its scale the replayed pressure's spread, the
+noise floor of every signal measured again on that rig. A
 leftover above :data:`verdict.NOISE_GAP` there says which sensor would tell the effect from
 parameters that are off on the same experiments: with the position alone a 3 ms valve delay is
 imitated, with either chamber's pressure it is not.
@@ -55,6 +56,7 @@ from jetpipe_ros.diagnosis.calibration import CALIBRATION, SPREAD
 from jetpipe_ros.diagnosis.candidates import Candidate, effect_of
 from jetpipe_ros.diagnosis.data import MIN_SCALE, Prepared, smoothed
 from jetpipe_ros.diagnosis.fit import Fit
+from jetpipe_ros.diagnosis.noise_floor import calibrate
 from jetpipe_ros.diagnosis.nuisance import calibration_jacobian
 from jetpipe_ros.diagnosis.prediction import predict
 from jetpipe_ros.diagnosis.score import effective_samples, predict_all, residual_vector, score
@@ -125,7 +127,9 @@ def _as_logged_with(prepared: Prepared, params: ModelParams, added: Sequence[str
                     sigma: float) -> Prepared:
     """``prepared`` as a rig that also logged the pressures ``added`` would have recorded it:
     each the chambers of ``params`` replayed from the measured motion and command, with noise
-    ``sigma`` [Pa] and the replayed pressure's spread as its scale."""
+    ``sigma`` [Pa] and the replayed pressure's spread as its scale; the noise floor of every
+    signal measured again (:func:`noise_floor.calibrate`): a pressure that restarts each
+    prediction lowers the position's too."""
     records, read = [], {s: [] for s in added}
     for rec in prepared.records:
         new = [s for s in added if not rec.measured(s)]
@@ -145,9 +149,9 @@ def _as_logged_with(prepared: Prepared, params: ModelParams, added: Sequence[str
         if xs:
             scale[s] = max(float(np.std(np.concatenate(xs))), MIN_SCALE[s])
             noise[s] = sigma
-    floor = {s: f for s, f in prepared.floor.items() if s not in added}
-    return dataclasses.replace(prepared, records=records, scale=scale, noise=noise, floor=floor,
-                               floor_windows=None)
+    rig = dataclasses.replace(prepared, records=records, scale=scale, noise=noise)
+    rig.floor, rig.floor_windows = calibrate(rig, params)  # the position's floor falls too
+    return rig
 
 
 def imitated_effects(found: dict[str, dict]) -> dict[str, dict]:
