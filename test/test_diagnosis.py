@@ -218,6 +218,7 @@ def test_the_separating_experiment_is_where_two_models_differ_most():
         sep = separating_experiment(a, b, prepared)
         # A lag and a delay differ most where the command is fast: a sweep to 60-70 Hz.
         assert "sweep" in sep["experiment"] and sep["difference_over_noise"] > 3.0
+        assert "with_sensors" not in sep  # every sensor logged
         same = separating_experiment(a, a, prepared)
         assert same["difference_over_noise"] == 0.0
     finally:
@@ -240,6 +241,11 @@ def test_a_separating_experiment_is_judged_on_the_sensors_the_bench_has(tmp_path
     # A 40 Hz lag against a 4 ms delay: a few to a few hundred times the noise, no more.
     assert all(0.0 <= m["difference_over_noise"] < 1e3 for m in sep["menu"])
     assert sep["difference_over_noise"] > 3.0
+    # Logging chamber 2's pressure would tell them on these very experiments: their predictions
+    # of it differ by more than a 500 Pa sensor's noise, RMS over thousands of samples (2.75 x);
+    # identical models, 0.
+    assert set(sep["with_sensors"]) == {"p2"} and 1.0 < sep["with_sensors"]["p2"] < 1e3
+    assert separating_experiment(a, a, prepared)["with_sensors"] == {"p2": 0.0}
 
 
 def test_split_fallbacks_are_stated(tmp_path):

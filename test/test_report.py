@@ -65,3 +65,18 @@ def test_what_is_not_ruled_out_says_which_pressure_sensor_would_tell_it():
            "<code>thermal</code>" in said
     assert said.endswith("a record with another sensor or experiment is needed to tell "
                          "<code>valve_lag</code>.")
+
+
+def test_an_ambiguous_verdict_on_fewer_sensors_names_the_pressure_that_would_tell():
+    """Two readings the records cannot tell apart, on a bench without pressure sensors: the
+    summary names the pressure whose predictions differ by more than one reading's noise on the
+    dataset's own experiments, and not the one that differs by less."""
+    result = json.loads(gzip.decompress(STORED.read_bytes()))
+    result["verdict"]["ambiguous_with"] = "valve_delay"
+    result["verdict"]["separating_experiment"] = {
+        "experiment": "square_3V_0p97Hz", "in_dataset": True, "designed": False,
+        "difference_over_noise": 3.3, "with_sensors": {"p1": 4.2, "p2": 0.5}}
+    said = summary(result).split("But <code>valve_delay</code>")[1].split("</p>")[0]
+    assert said.endswith("Logged with chamber 1's pressure, these very experiments would tell "
+                         "them apart too: the two models' predictions of it differ by 4.2 x a "
+                         "pressure sensor's noise.")

@@ -116,8 +116,13 @@ def separating_experiment(a: ModelParams, b: ModelParams, prepared: Prepared) ->
     """The experiment where two fitted models differ most, relative to sensor noise (the RMS
     over signals of (a - b) / noise; see the module text for the menu), judged on the signals
     the dataset measures. Experiments not in the dataset come with ``campaign_entry``, their
-    mapping for a campaign YAML."""
+    mapping for a campaign YAML. When the dataset lacks a chamber pressure, ``with_sensors``
+    gives how far the two models' predictions of it differ on the dataset's own free-piston
+    experiments, in units of a pressure sensor's noise (``sensors.pressure_sigma`` of ``a``):
+    what logging that pressure would add without a new experiment."""
     noise = {s: max(prepared.noise[s], 1e-12) for s in SIGNALS}
+    missing = [s for s in ("p1", "p2") if s not in prepared.sensors]
+    unmeasured: dict[str, list[float]] = {s: [] for s in missing}
     menu = []
     for rec in prepared.records:
         pa = predict(a, rec, prepared.dt)
@@ -127,6 +132,9 @@ def separating_experiment(a: ModelParams, b: ModelParams, prepared: Prepared) ->
         menu.append({"experiment": rec.name, "piston": rec.entry.piston, "in_dataset": True,
                      "held_out": not rec.train.any(), "designed": False,
                      "difference_over_noise": float(np.sqrt(d))})
+        for s in missing if not (rec.locked or rec.regulated) else ():
+            unmeasured[s].append(float(np.mean(((pa.signal(s) - pb.signal(s)) /
+                                                a["sensors.pressure_sigma"])[pa.free] ** 2)))
     have = {r.name for r in prepared.records}
     specs = [(exp, False) for exp in default_campaign().experiments
              if not exp.closed_loop and exp.name not in have]
@@ -152,8 +160,13 @@ def separating_experiment(a: ModelParams, b: ModelParams, prepared: Prepared) ->
     if not menu:
         return None
     menu.sort(key=lambda m: -m["difference_over_noise"])
-    return {**menu[0], "menu": [{k: m[k] for k in ("experiment", "in_dataset",
-                                                    "difference_over_noise")} for m in menu]}
+    out = {**menu[0], "menu": [{k: m[k] for k in ("experiment", "in_dataset",
+                                                   "difference_over_noise")} for m in menu]}
+    if any(unmeasured.values()):
+        # A pressure the bench did not log, as a sensor with the model's noise would have read
+        # it on the dataset's own experiments (RMS over them).
+        out["with_sensors"] = {s: float(np.sqrt(np.mean(v))) for s, v in unmeasured.items() if v}
+    return out
 
 
 def moved_knobs(values: Mapping[str, float],

@@ -299,6 +299,14 @@ def summary(result: dict) -> str:
         extra = (f" The experiment '{html.escape(sep['experiment'])}' {where} would "
                  f"separate them best (their predictions differ by "
                  f"{sep['difference_over_noise']:.1f} x the sensor noise)." if sep else "")
+        # A pressure the bench did not log, where the two differ by more than one reading's
+        # noise (RMS over the dataset's own experiments): a sensor that would tell them apart.
+        logged = {k: x for k, x in (sep or {}).get("with_sensors", {}).items() if x >= 1.0}
+        if logged:
+            extra += (" Logged with " + " or ".join(f"{ADDED[k]} pressure" for k in logged)
+                      + ", these very experiments would tell them apart too: the two models' "
+                      "predictions of it differ by " + " and ".join(
+                          f"{x:.1f}" for x in logged.values()) + " x a pressure sensor's noise.")
         lines.append(f"But <code>{html.escape(alt)}</code> explains the data almost as well: "
                      f"these experiments cannot tell the two apart." + extra)
         if sep and not sep["in_dataset"]:
