@@ -79,10 +79,13 @@ def _after_crossing(probe: Probe, since: float, level: float, seconds: float
     while not done():  # judged every 0.25 s: reading all samples after each one is quadratic
         if time.monotonic() > deadline:
             t, y, k = read()
+            u = np.array([m.data for m in probe.messages("voltage_cmd", since)])
             pytest.fail(f"no {seconds} s of samples after crossing {level} m in 60 s: "
                         f"{y.size} samples received over {np.ptp(t) if y.size else 0:.3f} s of "
-                        f"stamps, y from {np.min(y, initial=np.nan):.4g} to "
-                        f"{np.max(y, initial=np.nan):.4g} m, crossed at sample {k}")
+                        f"stamps, y from {np.min(y) if y.size else np.nan:.4g} to "
+                        f"{np.max(y) if y.size else np.nan:.4g} m, crossed at sample {k}; "
+                        f"{u.size} commands, from {np.min(u) if u.size else np.nan:.4g} to "
+                        f"{np.max(u) if u.size else np.nan:.4g} V")
         probe.spin_for(0.25)
     return read()
 
