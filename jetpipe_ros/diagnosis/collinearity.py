@@ -110,10 +110,10 @@ def with_added_sensors(prepared: Prepared, nominal: ModelParams, recalibrated: F
     experiments with each pressure sensor the records lack added, and with both where both are
     missing, in ``found[name]["with_sensors"]`` (by the signals added, joined by ``+``)."""
     hidden = [c for c in candidates if found.get(c.name, {}).get("imitated")]
-    missing = [s for s in ("p1", "p2") if s not in prepared.sensors]
+    missing = prepared.unmeasured_pressures
     if not hidden or not missing:
         return
-    for added in [(s,) for s in missing] + ([tuple(missing)] if len(missing) > 1 else []):
+    for added in [(s,) for s in missing] + ([missing] if len(missing) > 1 else []):
         rig = _as_logged_with(prepared, recalibrated.params, added,
                               nominal["sensors.pressure_sigma"])
         train = score(rig, predict_all(recalibrated.params, rig, "train"), "train")
@@ -170,6 +170,14 @@ def imitated_effects(found: dict[str, dict]) -> dict[str, dict]:
 ADDED = {"p1": "chamber 1's", "p2": "chamber 2's", "p1+p2": "both"}
 
 
+def telling(with_sensors: Mapping[str, float]) -> list[str]:
+    """The sensor sets of ``with_sensors`` (:func:`with_added_sensors`) that would tell an
+    effect from parameters that are off, their leftover at least :data:`verdict.NOISE_GAP`:
+    the single sensors that would, else both together; none when not even both would."""
+    tell = [k for k, v in with_sensors.items() if v >= NOISE_GAP]
+    return [k for k in tell if "+" not in k] or tell
+
+
 def sensor_words(hidden: Mapping[str, dict]) -> str:
     """Words for what a pressure sensor the records lack would tell of the effects ``hidden``
     (:func:`imitated_effects` after :func:`with_added_sensors`): the leftover of each
@@ -179,7 +187,7 @@ def sensor_words(hidden: Mapping[str, dict]) -> str:
     if not rows:
         return ""
     keys = list(next(iter(rows.values())))
-    told = [e for e, added in rows.items() if max(added.values()) >= NOISE_GAP]
+    told = [e for e, added in rows.items() if telling(added)]
     words = ""
     if told:
         words = (f"; logged with a chamber pressure as well, the same experiments would tell "

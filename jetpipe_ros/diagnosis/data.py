@@ -121,6 +121,11 @@ class Prepared:
         """The signals measured in at least one record."""
         return tuple(s for s in SIGNALS if any(r.measured(s) for r in self.records))
 
+    @property
+    def unmeasured_pressures(self) -> tuple[str, ...]:
+        """The chamber pressures (p1, p2) no record measured: sensors the bench lacks."""
+        return tuple(s for s in ("p1", "p2") if s not in self.sensors)
+
     def has_both_pressures(self) -> bool:
         """Whether every record that is not a locked or regulated test measured both pressures
         (what the equation errors of the force balance and the mechanics replay need)."""

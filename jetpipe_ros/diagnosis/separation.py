@@ -121,7 +121,7 @@ def separating_experiment(a: ModelParams, b: ModelParams, prepared: Prepared) ->
     experiments, in units of a pressure sensor's noise (``sensors.pressure_sigma`` of ``a``):
     what logging that pressure would add without a new experiment."""
     noise = {s: max(prepared.noise[s], 1e-12) for s in SIGNALS}
-    missing = [s for s in ("p1", "p2") if s not in prepared.sensors]
+    missing = prepared.unmeasured_pressures
     unmeasured: dict[str, list[float]] = {s: [] for s in missing}
     menu = []
     for rec in prepared.records:

@@ -16,7 +16,7 @@ import numpy as np
 import yaml
 
 from jetpipe_ros.diagnosis.calibration import NAME as CALIBRATION_GROUP
-from jetpipe_ros.diagnosis.collinearity import ADDED, imitated_effects
+from jetpipe_ros.diagnosis.collinearity import ADDED, imitated_effects, telling
 from jetpipe_ros.diagnosis.data import Prepared
 from jetpipe_ros.diagnosis.nuisance import words as nuisance_words
 from jetpipe_ros.diagnosis.separation import words as stand_in_words
@@ -346,15 +346,11 @@ def _what_would_tell(result: dict, effects: list[str]) -> str:
     """Which record would tell ``effects`` (not ruled out) from parameters that are off: the
     pressure sensors that would on the same experiments (``with_sensors``), else another
     sensor or experiment."""
-    threshold = result["visibility"]["threshold_gap_pct"]
     rows = imitated_effects(result["visibility"].get("imitated_by_recalibration", {}))
     by: dict[str, list[str]] = {}
     for e in effects:
-        added = {k: v for k, v in rows.get(e, {}).get("with_sensors", {}).items()
-                 if v >= threshold}
-        single = [k for k in added if "+" not in k]
         key = " or ".join(f"{ADDED[k]} pressure{'s' if '+' in k else ''}"
-                          for k in single or added)
+                          for k in telling(rows.get(e, {}).get("with_sensors", {})))
         by.setdefault(key, []).append(f"<code>{e}</code>")
     words = [f"logged with {key} as well, these experiments would tell {', '.join(es)}"
              for key, es in by.items() if key]
