@@ -10,7 +10,7 @@ from scipy import signal
 
 from jetpipe_ros.diagnosis.calibration import CALIBRATION, at_bound, describe
 from jetpipe_ros.diagnosis.data import prepare
-from jetpipe_ros.diagnosis.fit import fit
+from jetpipe_ros.diagnosis.fit import fit, uncertainty
 from jetpipe_ros.diagnosis.noise_floor import calibrate
 from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.model import ModelParams, ParameterError
@@ -113,11 +113,41 @@ def test_recalibration_recovers_the_factors_from_a_neutral_start(off_bench):
     got = f.values["calibration"]
     assert got["flow_gain_charge"] == pytest.approx(0.9, abs=0.01)
     assert got["flow_gain_discharge"] == pytest.approx(0.9, abs=0.01)
-    for k in ("friction_entry", "friction_exit", "viscous_entry", "viscous_exit"):
+    for k in ("viscous_entry", "viscous_exit"):
         assert got[k] == pytest.approx(1.3, abs=0.06), k
     for k in ("valve_gain", "valve_frequency"):
         assert got[k] == pytest.approx(1.0, abs=0.02), k
+    # The breakaway and Coulomb planes are what these records pin least (standard errors
+    # about 0.1): held to the hardware's spread (sd 0.4 in ln) they land within one standard
+    # error of the truth, on its side of nominal by most of the way.
+    errors = uncertainty(prepared, NOMINAL, f)["calibration"]
+    for k in ("friction_entry", "friction_exit"):
+        assert abs(got[k] - 1.3) < errors[k] < 0.15, k
+        assert got[k] > 1.15, k
     assert f.holdout.gap < 0.1
+
+
+def test_the_position_alone_sends_no_knob_to_its_bound_to_imitate_a_hysteresis(tmp_path):
+    """The self-check's weighted-play hysteresis (seed 7103, case 4: the plant's three plays of
+    0.12-0.55 V on a bench whose parameters are off too) seen by the position alone. Fitted
+    without the hardware's spread as a prior, the recalibration took eight of the ten knobs to
+    their bounds (both dead volumes halved, the entry friction 2.5 times nominal, ...) to
+    imitate the loop, and the hysteresis on top then explained 40 % of what was left: answered
+    `unlisted`. Held to the spread, the posterior mode, every knob stays inside its range."""
+    from jetpipe_ros.plant.logger import log
+    from jetpipe_ros.workflows.selfcheck import make_cases, record
+
+    case = make_cases(20, 7103)[4]
+    assert case.kind == "weighted_play_hysteresis"
+    record(case.truth_model().with_values({"sensors.noise": True,
+                                           "sensors.seed": case.seed % 100000}),
+           tmp_path, case.seed)
+    log("position_only", tmp_path, case.seed + 1)
+    prepared = prepare(read_dataset(tmp_path))
+    assert prepared.sensors == ("y",)
+    prepared.floor, prepared.floor_windows = calibrate(prepared, NOMINAL)
+    f = fit(prepared, NOMINAL, [CALIBRATION], CALIBRATION.start(), budget=150)
+    assert at_bound(f.values["calibration"]) == []
 
 
 def test_a_joint_fit_grids_the_effect_from_a_given_base(off_bench):

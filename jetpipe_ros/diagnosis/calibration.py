@@ -97,6 +97,12 @@ class Calibration(KnobGroup):
                                              k.low, k.high)))
         return out
 
+    def prior_residuals(self, z: np.ndarray) -> np.ndarray:
+        """How far the unit-scaled knobs ``z`` lie from nominal in the hardware's spread: the
+        natural log of each factor over its :data:`SPREAD` (a standard normal under the prior)."""
+        return np.array([math.log(k.to_value(float(zi))) / SPREAD[k.name]
+                         for k, zi in zip(self.knobs, z)])
+
     def apply(self, params: ModelParams, values: dict[str, float]) -> ModelParams:
         """``params`` with each nominal parameter multiplied by its knob's factor."""
         changes: dict = {}

@@ -131,6 +131,10 @@ class _Objective:
         self.calibration = next((slice(int(o), int(o) + len(c.knobs))
                                  for c, o in zip(self.candidates, offsets)
                                  if c.name == CALIBRATION), None)
+        self.calibration_group = next((c for c in self.candidates if c.name == CALIBRATION),
+                                      None)
+        #: independent pieces of evidence in the training records (set at the first call)
+        self.evidence: float | None = None
 
     def params(self, z: np.ndarray) -> ModelParams:
         p = self.nominal
@@ -149,11 +153,26 @@ class _Objective:
         z = np.clip(np.asarray(z, dtype=float), 0.0, 1.0)
         preds = predict_all(self.params(z), self.prepared, "train")
         r = residual_vector(self.prepared, preds, "train")
+        if self.calibration is not None:
+            r = np.concatenate([r, self._prior(r, preds, z)])
         cost = float(r @ r)
         if cost < self.best_cost:
             self.best_cost = cost
             self.best_z = z.copy()
         return r
+
+    def _prior(self, r: np.ndarray, preds: Sequence, z: np.ndarray) -> np.ndarray:
+        """Residuals that hold the calibration knobs to the hardware's spread: with the data's
+        training error C = r.r over N pieces of evidence, rows sqrt(C / N) ln(f) / sigma, so
+        that the sum of squares is C (1 + P / N), P the knobs' squared distance from nominal in
+        spreads. Minimising it minimises N log C + P to first order: the posterior mode of the
+        knobs under the prior of :data:`calibration.SPREAD`, the residuals' variance unknown
+        (estimated by C, as :func:`uncertainty` does)."""
+        if self.evidence is None:
+            self.evidence = effective_samples(score(self.prepared, preds, "train"),
+                                              self.prepared.dt)
+        knobs = self.calibration_group.prior_residuals(z[self.calibration])
+        return float(np.sqrt(float(r @ r) / self.evidence)) * knobs
 
     def cost(self, z: np.ndarray) -> float:
         r = self.residuals(z)
