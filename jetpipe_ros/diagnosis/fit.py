@@ -10,6 +10,12 @@ its column of the Jacobian: calibration knobs and an effect trade off along narr
 an unscaled step crawls along). Every fit has a budget of model evaluations and keeps the best
 point it has seen.
 
+Every fit that holds the calibration knobs holds them to the hardware's typical spread
+(:data:`calibration.SPREAD`) as a prior: its residuals carry one row per knob, scaled so that
+the least squares find the posterior mode (:meth:`_Objective._prior`). The records pin a knob
+far more tightly than that where they can; where they cannot (the dead volumes and frictions
+with the position alone) the knob no longer runs to its bound to imitate an effect.
+
 A fit of the calibration knobs then fits, on all records (training and held-out alike), the
 directions of them that the training records leave free but the held-out predictions depend on
 (:mod:`nuisance`, :attr:`data.Prepared.nuisance`; at most a few), the rest held: nuisance
@@ -326,7 +332,9 @@ def uncertainty(prepared: Prepared, nominal: ModelParams, fitted: Fit,
     of a window are correlated, :func:`score.effective_samples`) the log-likelihood is about
     -N/2 log(C) for the training error C = r.r, so the covariance of the knobs is
     C / N (J^T J)^-1, J the Jacobian of the residuals over all the fit's knobs (central
-    differences, ``step`` in the unit-scaled knobs). A knob the error does not depend on there
+    differences, ``step`` in the unit-scaled knobs); the calibration knobs' prior rows
+    (:meth:`_Objective._prior`) are among the residuals, so theirs is the posterior's
+    curvature, which the hardware's spread bounds. A knob the error does not depend on there
     (a delay between two sub-steps) has no standard error (None). ``groups`` are the fit's
     knob groups when they are not candidates or the calibration (looked up by name).
     """
