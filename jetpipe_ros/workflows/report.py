@@ -42,7 +42,7 @@ def ranking_figure(result: dict) -> str:
                label=f"recalibrated {result['gap']['recalibrated']:.2f} %")
     for i, r in enumerate(rows[::-1]):
         ax.text(r["holdout_gap"], i, f"  {100 * r['shrinkage']:.0f} %", va="center", fontsize=8)
-    ax.set_xlim(0.0, 1.12 * max(gaps + [result["gap"]["nominal"]]))  # room for the labels
+    ax.set_xlim(0.0, 1.12 * max(gaps + [result["gap"]["nominal"], 0.01]))  # room for labels
     ax.set_xlabel("held-out gap, excess NRMSE [%] (labels: shrinkage of what recalibration "
                   "leaves)")
     # Above the bars: inside, it covered the shrinkage labels of the last ones.
