@@ -133,12 +133,11 @@ class _Objective:
         self.best_cost = np.inf
         self.best_z: np.ndarray | None = None
         offsets = np.cumsum([0] + self.sizes)
-        #: where the calibration knobs lie in the knob vector (None: not fitted here)
-        self.calibration = next((slice(int(o), int(o) + len(c.knobs))
-                                 for c, o in zip(self.candidates, offsets)
-                                 if c.name == CALIBRATION), None)
-        self.calibration_group = next((c for c in self.candidates if c.name == CALIBRATION),
-                                      None)
+        #: the calibration knobs' group and where they lie in the knob vector (None, None: not
+        #: fitted here)
+        self.calibration_group, self.calibration = next(
+            ((c, slice(int(o), int(o) + len(c.knobs)))
+             for c, o in zip(self.candidates, offsets) if c.name == CALIBRATION), (None, None))
         #: independent pieces of evidence in the training records (set at the first call)
         self.evidence: float | None = None
 
