@@ -369,6 +369,44 @@ def test_which_pressure_sensor_would_tell_an_imitated_delay(parameters_only_reca
     assert added["p1+p2"] == pytest.approx(real["valve_delay"]["left_gap_pct"], rel=0.10)
 
 
+def test_the_console_says_what_a_none_cannot_rule_out_and_which_sensor_would_tell():
+    """``jetpipe diagnose``'s last lines repeat what diagnosis.json says of a ``none`` on the
+    position alone: each effect the recalibration imitates, with the pressure sensors whose
+    leftover after the imitation reaches the 0.5 % bar (a delay: 1.90 % with chamber 1's,
+    1.70 % with chamber 2's; a leak: 0.31 % with either, 0.62 % with both; a polytropic index:
+    0.3 % with both), and what the
+    records cannot judge at all."""
+    from jetpipe_ros.workflows.cli import summary_lines
+
+    def row(candidate, p1, p2, both):
+        return {"signature_gap_pct": 1.0, "left_gap_pct": 0.24, "imitated": True,
+                "knobs": {}, "with_sensors": {"p1": p1, "p2": p2, "p1+p2": both}}
+
+    result = {
+        "data": {"time_base": {"explanation": "as logged"},
+                 "cannot_judge": {"sensor_dynamics": "the records have no pressure sensor"}},
+        "verdict": {"model_fits": True, "effect": "none", "subsystem": "none",
+                    "confidence": 0.98},
+        "visibility": {"not_ruled_out": ["leakage", "thermal", "valve_delay"],
+                       "imitated_by_recalibration": {
+                           "valve_delay": row("valve_delay", 1.90, 1.70, 2.08),
+                           "valve_delay:line": {**row("valve_delay:line", 0.1, 0.1, 0.1),
+                                                "left_gap_pct": 0.30},
+                           "leakage:laminar": row("leakage:laminar", 0.31, 0.31, 0.62),
+                           "thermal:polytropic": row("thermal:polytropic", 0.2, 0.2, 0.3)}},
+        "gap": {"metric": "excess_nrmse_pct", "nominal": 12.48, "augmented": 0.20,
+                "shrinkage": 0.984}}
+    lines = summary_lines(result, "out/diag")
+    assert ("cannot rule out valve_delay: the recalibration imitates it; chamber 1's or "
+            "chamber 2's pressure would tell") in lines
+    assert ("cannot rule out leakage: the recalibration imitates it; both pressures would "
+            "tell") in lines
+    assert ("cannot rule out thermal: the recalibration imitates it; not even the pressures "
+            "these records lack would tell") in lines
+    assert "not judged: sensor_dynamics (the records have no pressure sensor)" in lines
+    assert lines[1] == "verdict: none (subsystem none, confidence 0.98)"
+
+
 @pytest.mark.parametrize("kept", ["p1", "p2"])
 def test_with_one_pressure_sensor_its_own_bias_is_fitted_and_no_second(tmp_path, kept):
     """Pressure transducers of their own dynamics (100 Hz, damping 0.8, written apart from the

@@ -21,18 +21,38 @@ def _diagnose(args: argparse.Namespace) -> int:
 
     result = diagnose(dirs[0], args.out, params, workers=args.jobs, quiet=args.quiet,
                       scheduler=args.scheduler)
-    v, g = result["verdict"], result["gap"]
-    print(f"time base: {result['data']['time_base']['explanation']}")
-    if not v["model_fits"]:
-        print(v["reason"])  # it begins: the model does not describe this hardware
-        print("verdict: no effect named (model_fits: false)")
-    else:
-        print(f"verdict: {v['effect']} (subsystem {v['subsystem']}, confidence "
-              f"{v['confidence']:.2f})")
-    print(f"held-out gap ({g['metric']}): nominal {g['nominal']:.2f} %, augmented "
-          f"{g['augmented']:.2f} %, shrinkage {100 * g['shrinkage']:.0f} %")
-    print(f"report: {args.out}/report.html  augmented model: {args.out}/augmented.yaml")
+    print("\n".join(summary_lines(result, args.out)))
     return 0
+
+
+def summary_lines(result: dict, out: str) -> list[str]:
+    """The last lines ``jetpipe diagnose`` prints of a diagnosis (``result``: diagnosis.json's
+    content; ``out``: its folder): the time base, the verdict, what a ``none`` cannot rule out
+    and which pressure sensor would tell it, what the records cannot judge, the held-out gap
+    and where the files are."""
+    from jetpipe_ros.diagnosis.collinearity import ADDED, imitated_effects, telling
+
+    v, g = result["verdict"], result["gap"]
+    lines = [f"time base: {result['data']['time_base']['explanation']}"]
+    if not v["model_fits"]:
+        lines += [v["reason"],  # it begins: the model does not describe this hardware
+                  "verdict: no effect named (model_fits: false)"]
+    else:
+        lines.append(f"verdict: {v['effect']} (subsystem {v['subsystem']}, confidence "
+                     f"{v['confidence']:.2f})")
+    hidden = imitated_effects(result["visibility"].get("imitated_by_recalibration", {}))
+    for effect in result["visibility"].get("not_ruled_out", []):
+        added = hidden.get(effect, {}).get("with_sensors", {})
+        sensors = " or ".join(ADDED[k] for k in telling(added))
+        tell = (f"; {sensors} pressure{'s' if sensors == 'both' else ''} would tell" if sensors
+                else "; not even the pressures these records lack would tell" if added else "")
+        lines.append(f"cannot rule out {effect}: the recalibration imitates it{tell}")
+    for effect, why in result["data"].get("cannot_judge", {}).items():
+        lines.append(f"not judged: {effect} ({why})")
+    lines += [f"held-out gap ({g['metric']}): nominal {g['nominal']:.2f} %, augmented "
+              f"{g['augmented']:.2f} %, shrinkage {100 * g['shrinkage']:.0f} %",
+              f"report: {out}/report.html  augmented model: {out}/augmented.yaml"]
+    return lines
 
 
 def _fleet(args: argparse.Namespace, dirs, params) -> int:
