@@ -429,6 +429,10 @@ def test_the_console_says_what_a_none_cannot_rule_out_and_which_sensor_would_tel
             "these records lack would tell") in lines
     assert "not judged: sensor_dynamics (the records have no pressure sensor)" in lines
     assert lines[1] == "verdict: none (subsystem none, confidence 0.98)"
+    result["verdict"].update(model_fits=False, reason="the model does not describe this hardware")
+    unfit = summary_lines(result, "out/diag")
+    assert "verdict: no effect named (model_fits: false)" in unfit
+    assert not any(line.startswith("cannot rule out") for line in unfit)
 
 
 @pytest.mark.parametrize("kept", ["p1", "p2"])

@@ -28,7 +28,8 @@ def _diagnose(args: argparse.Namespace) -> int:
 def summary_lines(result: dict, out: str) -> list[str]:
     """The last lines ``jetpipe diagnose`` prints of a diagnosis (``result``: diagnosis.json's
     content; ``out``: its folder): the time base, the verdict, what a ``none`` cannot rule out
-    and which pressure sensor would tell it, what the records cannot judge, the held-out gap
+    and which pressure sensor would tell it (not when the model does not describe the
+    hardware: then no effect is in question), what the records cannot judge, the held-out gap
     and where the files are."""
     from jetpipe_ros.diagnosis.collinearity import ADDED, imitated_effects, telling
 
@@ -41,7 +42,7 @@ def summary_lines(result: dict, out: str) -> list[str]:
         lines.append(f"verdict: {v['effect']} (subsystem {v['subsystem']}, confidence "
                      f"{v['confidence']:.2f})")
     hidden = imitated_effects(result["visibility"].get("imitated_by_recalibration", {}))
-    for effect in result["visibility"].get("not_ruled_out", []):
+    for effect in result["visibility"].get("not_ruled_out", []) if v["model_fits"] else []:
         added = hidden.get(effect, {}).get("with_sensors", {})
         sensors = " or ".join(ADDED[k] for k in telling(added))
         tell = (f"; {sensors} pressure{'s' if sensors == 'both' else ''} would tell" if sensors
