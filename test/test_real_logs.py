@@ -381,8 +381,8 @@ def test_the_position_alone_barely_sees_the_supply_level(tmp_path):
     runs = [read_dataset(run_campaign_offline(params, plan, tmp_path / name, seed=4))
             for name, params in (("nominal", ModelParams()), ("low", ModelParams().with_effect(
                 "supply_pressure", pressure=7e5)))]
-    free = [[e for e in d.experiments if e.name not in ("charge_2p86V", "valve_sweep_1V")]
-            for d in runs]
+    locked = {e.name for e in plan.experiments if e.locked}
+    free = [[e for e in d.experiments if e.name not in locked] for d in runs]
 
     def moved(signal: str) -> float:
         a, b = (np.concatenate([getattr(e, signal) for e in d]) for d in free)
@@ -398,11 +398,10 @@ def test_the_console_says_what_a_none_cannot_rule_out_and_which_sensor_would_tel
     position alone: each effect the recalibration imitates, with the pressure sensors whose
     leftover after the imitation reaches the 0.5 % bar (a delay: 1.90 % with chamber 1's,
     1.70 % with chamber 2's; a leak: 0.31 % with either, 0.62 % with both; a polytropic index:
-    0.3 % with both), and what the
-    records cannot judge at all."""
+    0.3 % with both), and what the records cannot judge at all."""
     from jetpipe_ros.workflows.cli import summary_lines
 
-    def row(candidate, p1, p2, both):
+    def row(p1, p2, both):
         return {"signature_gap_pct": 1.0, "left_gap_pct": 0.24, "imitated": True,
                 "knobs": {}, "with_sensors": {"p1": p1, "p2": p2, "p1+p2": both}}
 
@@ -413,11 +412,11 @@ def test_the_console_says_what_a_none_cannot_rule_out_and_which_sensor_would_tel
                     "confidence": 0.98},
         "visibility": {"not_ruled_out": ["leakage", "thermal", "valve_delay"],
                        "imitated_by_recalibration": {
-                           "valve_delay": row("valve_delay", 1.90, 1.70, 2.08),
-                           "valve_delay:line": {**row("valve_delay:line", 0.1, 0.1, 0.1),
+                           "valve_delay": row(1.90, 1.70, 2.08),
+                           "valve_delay:line": {**row(0.1, 0.1, 0.1),
                                                 "left_gap_pct": 0.30},
-                           "leakage:laminar": row("leakage:laminar", 0.31, 0.31, 0.62),
-                           "thermal:polytropic": row("thermal:polytropic", 0.2, 0.2, 0.3)}},
+                           "leakage:laminar": row(0.31, 0.31, 0.62),
+                           "thermal:polytropic": row(0.2, 0.2, 0.3)}},
         "gap": {"metric": "excess_nrmse_pct", "nominal": 12.48, "augmented": 0.20,
                 "shrinkage": 0.984}}
     lines = summary_lines(result, "out/diag")
