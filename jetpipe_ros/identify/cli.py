@@ -51,7 +51,8 @@ def add_command(subparsers) -> None:
     cmd.add_argument("--out", required=True, help="parameter YAML to write (ROS params layout)")
     cmd.add_argument("--params", help="starting parameters (YAML); default: the nominal model")
     cmd.add_argument("--report", help="HTML report path; default: OUT with .report.html")
-    cmd.add_argument("--procedures", help="comma-separated subset of flow_map, valve, "
+    cmd.add_argument("--procedures", help="comma-separated subset of flow_map (Eq. 8), "
+                                          "flow_table (its correction table), valve, "
                                           "hysteresis, friction; each listed one must run "
                                           "(default: all that the data allow)")
     cmd.set_defaults(func=_run)

@@ -1,10 +1,11 @@
 """The identification run: each procedure on the experiments that feed it, then one parameter
 set the simulator loads, and replays that check it on experiments no procedure used.
 
-Order matters: the flow map first (the valve and hysteresis procedures read u_eq through it),
-then the valve, the hysteresis and the friction. A procedure whose experiments are missing or
-insufficient is skipped with the reason (its parameters keep their starting values), unless it
-was required, which makes that a DatasetError; so is a run where nothing could be identified.
+Order matters: the flow map first, Eq. 8 then its correction table (the valve and hysteresis
+procedures read u_eq through both), then the valve, the hysteresis and the friction. A
+procedure whose experiments are missing or insufficient is skipped with the reason (its
+parameters keep their starting values), unless it was required, which makes that a
+DatasetError; so is a run where nothing could be identified.
 """
 
 from __future__ import annotations
@@ -18,14 +19,15 @@ import numpy as np
 from jetpipe_ros.dataset import Dataset, DatasetError
 from jetpipe_ros.identify import experiments as kinds
 from jetpipe_ros.identify.experiments import Recording, of_kind, recordings
-from jetpipe_ros.identify.flow_map import FlowMapResult, identify_flow_map
+from jetpipe_ros.identify.flow_map import (FlowMapResult, FlowTableResult, identify_flow_map,
+                                           identify_flow_table)
 from jetpipe_ros.identify.friction import FrictionResult, identify_friction
 from jetpipe_ros.identify.hysteresis import HysteresisResult, identify_hysteresis
 from jetpipe_ros.identify.valve import ValveResult, identify_valve
 from jetpipe_ros.model import ModelParams, simulate
 from jetpipe_ros.replay import replay
 
-PROCEDURES = ("flow_map", "valve", "hysteresis", "friction")
+PROCEDURES = ("flow_map", "flow_table", "valve", "hysteresis", "friction")
 
 
 @dataclass
@@ -49,6 +51,7 @@ class Identification:
     base: ModelParams  #: the starting parameters
     recordings: list[Recording]
     flow: FlowMapResult | None = None
+    table: FlowTableResult | None = None
     valve: ValveResult | None = None
     hysteresis: HysteresisResult | None = None
     friction: FrictionResult | None = None
@@ -75,6 +78,7 @@ def identify(dataset: Dataset, base: ModelParams | None = None,
     out = Identification(params=base, base=base, recordings=recs)
     changes: dict[str, Any] = {}
     coefficients = list(base["flow.coefficients"])
+    table = list(base["flow.table"])
 
     def attempt(name: str, run):  # type: ignore[no-untyped-def]
         if name not in wanted:
@@ -91,12 +95,20 @@ def identify(dataset: Dataset, base: ModelParams | None = None,
     if out.flow is not None:
         coefficients = out.flow.coefficients
         changes["flow.coefficients"] = coefficients
+        table = [0.0] * len(table)  # a table corrects the Eq. 8 it was fitted beside
+    out.table = attempt("flow_table", lambda: identify_flow_table(
+        of_kind(recs, kinds.CHARGE), base, coefficients))
+    if out.table is not None:
+        table = out.table.table
+    if table != list(base["flow.table"]):
+        changes["flow.table"] = table
+    flow_map = coefficients + table
     out.valve = attempt("valve", lambda: identify_valve(of_kind(recs, kinds.SWEEP), base,
-                                                        coefficients))
+                                                        flow_map))
     if out.valve is not None:
         changes.update(out.valve.values)
     out.hysteresis = attempt("hysteresis", lambda: identify_hysteresis(
-        of_kind(recs, kinds.RAMP), base, coefficients))
+        of_kind(recs, kinds.RAMP), base, flow_map))
     if out.hysteresis is not None:
         changes["effects.valve_hysteresis.enabled"] = out.hysteresis.significant
         if out.hysteresis.significant:
@@ -107,7 +119,7 @@ def identify(dataset: Dataset, base: ModelParams | None = None,
     if out.friction is not None:
         for phase, planes in out.friction.planes.items():
             changes.update({f"friction.{phase}.{q}": c for q, c in planes.items()})
-    if not changes:
+    if not set(wanted) - set(out.skipped):
         raise DatasetError("nothing identified: " + "; ".join(
             f"{k}: {v}" for k, v in out.skipped.items()) if out.skipped else
             "nothing identified: no procedure selected")

@@ -13,7 +13,8 @@ from jetpipe_ros.figures import png_img, pyplot
 from jetpipe_ros.identify.friction import QUANTITIES, paper_planes
 from jetpipe_ros.identify.identify import Identification
 from jetpipe_ros.identify.valve import peak, response
-from jetpipe_ros.model.flow import mass_flow
+from jetpipe_ros.identify.flow_map import flow_samples
+from jetpipe_ros.model.flow import TABLE_P, TABLE_U, mass_flow
 from jetpipe_ros.model.friction import plane
 from jetpipe_ros.model.params import FLOW_COEFFICIENTS, FRICTION_UNITS
 from jetpipe_ros.model.valve import jetpipe_position
@@ -37,6 +38,13 @@ def summary(ident: Identification) -> str:
                      f"{len(f.levels)} voltage levels, u_eq {u0:.2f}..{u1:.2f} V, p "
                      f"{p0:.2f}..{p1:.2f} bar: fit error max {f.max_error:.2e} kg/s, rms "
                      f"{f.rms_error:.2e} kg/s (paper: max about {PAPER['flow_max_error']} kg/s)")
+    if ident.table is not None:
+        f = ident.table
+        verdict = (f"kept (largest correction {max(map(abs, f.table)):.2f} g/s)" if f.kept else
+                   "not kept: Eq. 8 alone predicts the tests left out as well (table zero)")
+        lines.append(f"- flow map correction table from {len(f.experiments)} charge/discharge "
+                     f"test(s), each left out in turn: Eq. 8's error on them rms "
+                     f"{f.rms_before:.2e} kg/s, with the table {f.rms_after:.2e} kg/s: {verdict}")
     if ident.valve is not None:
         v = ident.valve
         fr, g = peak(ident.params)
@@ -83,6 +91,23 @@ def summary(ident: Identification) -> str:
     return "\n".join(lines)
 
 
+def table_figure(ident: Identification, plt: Any) -> str:
+    """The correction table over voltage and pressure, with where the samples lie."""
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    values = np.array(ident.table.table).reshape(TABLE_U.size, TABLE_P.size)
+    top = max(float(np.abs(values).max()), 1e-9)
+    image = ax.pcolormesh(TABLE_P, TABLE_U, values, shading="gouraud", cmap="RdBu_r",
+                          vmin=-top, vmax=top)
+    fig.colorbar(image, ax=ax, label="correction to Eq. 8 [g/s]")
+    for rec in ident.recordings:
+        if rec.name in ident.table.experiments:
+            s = flow_samples(rec, ident.base)
+            ax.plot(s.p_bar[::40], s.u[::40], "k.", ms=1)
+    ax.set(xlabel="chamber pressure [bar]", ylabel="equivalent voltage u_eq [V]",
+           title="Flow map correction table (colour) and the samples it was fitted to (dots)")
+    return png_img(fig)
+
+
 def figures(ident: Identification) -> list[tuple[str, str]]:
     """(title, <img> tag) of each plot the results allow."""
     plt = pyplot()
@@ -105,6 +130,8 @@ def figures(ident: Identification) -> list[tuple[str, str]]:
                title="Flow map: samples (dots), identified Eq. 8 (lines), paper (dotted)")
         ax.legend(fontsize=7, ncol=2)
         out.append(("Mass flow map (Sec. 2.3)", png_img(fig)))
+    if ident.table is not None and ident.table.kept:
+        out.append(("Flow map correction table", table_figure(ident, plt)))
     if ident.valve is not None:
         v = ident.valve
         f = np.linspace(1.0, max(v.top_frequency, 70.0), 400)
@@ -173,13 +200,21 @@ def html_report(ident: Identification) -> str:
     figs = "".join(f"<h2>{html.escape(t)}</h2>{img}" for t, img in figures(ident))
     return ("<!DOCTYPE html><html><head><meta charset='utf-8'><title>jetpipe identify</title>"
             "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}"
-            "td,th{border:1px solid #ccc;padding:2px 6px;font-size:13px}</style></head><body>"
+            "td,th{border:1px solid #ccc;padding:2px 6px;font-size:13px}"
+            "pre{white-space:pre-wrap}</style></head><body>"
             "<h1>Parameter identification</h1><pre>" + html.escape(summary(ident)) + "</pre>"
             "<h2>Identified parameters</h2><table><tr><th>parameter</th><th>identified</th>"
             "<th>starting</th></tr>" + rows + "</table>" + figs + "</body></html>")
 
 
+#: Lists longer than this (the flow map's correction table) are summarised, not listed.
+LONGEST_LISTED = 24
+
+
 def _fmt(value: Any) -> str:
+    if isinstance(value, list) and len(value) > LONGEST_LISTED:
+        return (f"{len(value)} values from {min(value):.4g} to {max(value):.4g}" if any(value)
+                else f"{len(value)} zeros")
     if isinstance(value, list):
         return "[" + ", ".join(f"{x:.5g}" for x in value) + "]"
     return f"{value:.5g}" if isinstance(value, float) else str(value)

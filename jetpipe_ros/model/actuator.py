@@ -39,6 +39,15 @@ def profile_array(p: Mapping[str, Any]) -> np.ndarray:
     return np.array(rows, dtype=float)
 
 
+def flow_map(p: Mapping[str, Any]) -> np.ndarray:
+    """The kernel's flow map: Eq. 8's coefficients [g/s], followed by the correction table
+    (``flow.table``, :func:`~jetpipe_ros.model.flow.table_flow`) when it is not all zero (the
+    kernel skips an absent table: Eq. 8 alone costs no lookup)."""
+    coef = np.array(p["flow.coefficients"], dtype=float)
+    table = np.array(p["flow.table"], dtype=float)
+    return np.concatenate([coef, table]) if np.any(table) else coef
+
+
 def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
     """Compile validated parameters (nominal values plus enabled effects) for the kernel."""
 
@@ -90,7 +99,7 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
         valve_a=valve.a, valve_g=valve.g, valve_c=valve.c, valve_h=valve.h,
         delay_samples=valve.delay_samples,
         hysteresis=hysteresis,
-        flow_coef=np.array(p["flow.coefficients"], dtype=float),
+        flow_coef=flow_map(p),
         gain_charge=p["flow.gain_charge"], gain_discharge=p["flow.gain_discharge"],
         valve_gain=p["valve.gain"],
         p_supply=effect("supply_pressure", "pressure", P_SUPPLY_NOMINAL),

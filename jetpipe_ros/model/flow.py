@@ -7,6 +7,11 @@ than the 10 bar of the identification (supply_pressure effect) maps the chamber 
 from [p_atm, p_s] onto [1, 10] bar and scales the flow by (p_s - p_atm) / 9 bar: the jet-pipe's
 pressure recovery is a fixed fraction of the supply-to-atmosphere span.
 
+An individual valve's map departs from Eq. 8 by about the polynomial's fit error, in a shape it
+cannot hold everywhere: an optional correction table (``flow.table``, zero by default) adds a
+smooth surface through the values of a fixed grid of voltage and pressure, identified from the
+constant-volume tests like Eq. 8 itself (:func:`table_flow`).
+
 The leakage effect's laws are here too: the compressible orifice (:func:`orifice_flow`) and the
 power law with a free exponent (:func:`power_leak`); the laminar one is a conductance times the
 pressure difference. So is the valve_lag effect's ``flow`` form, a lag on each chamber's mass
@@ -35,6 +40,9 @@ KG_PER_G = 1e-3
 #: (:func:`flow_polynomial`), the identification fits their coefficients (:func:`flow_matrix`).
 FLOW_TERMS = tuple((degree - j, j) for degree in range(6) for j in range(degree + 1))
 
+#: Number of Eq. 8's terms.
+N_TERMS = len(FLOW_TERMS)
+
 #: Position in the paper's order of the coefficient of u^i p^j, at [i, j] (-1: no such term).
 _TERM_INDEX = np.full((6, 6), -1, dtype=np.int64)
 for _k, (_i, _j) in enumerate(FLOW_TERMS):
@@ -58,6 +66,85 @@ def flow_polynomial(coef: np.ndarray, u: float, p_bar: float) -> float:
     return g * KG_PER_G
 
 
+#: The correction table's nodes: equivalent voltage [V] and chamber pressure [bar]. Fixed, so a
+#: table is a plain list of numbers (a ROS parameter): value [g/s] at (TABLE_U[i], TABLE_P[j])
+#: is entry i * len(TABLE_P) + j.
+TABLE_U = np.linspace(-3.0, 3.0, 13)
+TABLE_P = np.linspace(1.0, 10.0, 10)
+#: Entries of the correction table.
+TABLE_SIZE = TABLE_U.size * TABLE_P.size
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _cell(x: float, first: float, step: float, n: int) -> tuple[int, float]:
+    """Lower node index and fraction of a uniform grid's cell holding ``x`` (clamped)."""
+    s = (x - first) / step
+    s = min(max(s, 0.0), n - 1.0)
+    i = min(int(s), n - 2)
+    return i, s - i
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _cubic_weights(t: float) -> tuple[float, float, float, float]:
+    """Weights of the nodes before, at the start of, at the end of and after a cell, at
+    fraction ``t`` of it: cubic convolution (Keys 1981, a = -1/2, the Catmull-Rom spline)."""
+    t2 = t * t
+    t3 = t2 * t
+    return ((-t3 + 2.0 * t2 - t) * 0.5, (3.0 * t3 - 5.0 * t2 + 2.0) * 0.5,
+            (-3.0 * t3 + 4.0 * t2 + t) * 0.5, (t3 - t2) * 0.5)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def table_flow(coef: np.ndarray, u: float, p_bar: float) -> float:
+    """The flow map's correction [kg/s] at voltage ``u`` [V] and pressure ``p_bar`` [bar]:
+    the table that follows Eq. 8's 21 coefficients in ``coef`` [g/s] on the nodes
+    :data:`TABLE_U` x :data:`TABLE_P`, interpolated by cubic convolution in each direction
+    (through the nodes' values, reproducing any quadratic surface inside the grid; a node
+    beyond an edge repeats the edge's), constant beyond the outer nodes.
+
+    A real valve's map departs from Eq. 8 by about its fit error (0.5 g/s at most in the paper)
+    in a shape no fifth-order polynomial holds everywhere; the table, identified from the
+    constant-volume tests (:mod:`jetpipe_ros.identify.flow_map`), carries that departure.
+    Bilinear interpolation on the same nodes would miss a departure of the self-check's shape
+    by a tenth of its size, enough to leave a held-out gap of about 1 % (docs/identification.md).
+    """
+    nu = TABLE_U.shape[0]
+    npp = TABLE_P.shape[0]
+    i, a = _cell(u, TABLE_U[0], TABLE_U[1] - TABLE_U[0], nu)
+    j, b = _cell(p_bar, TABLE_P[0], TABLE_P[1] - TABLE_P[0], npp)
+    wu = _cubic_weights(a)
+    wp = _cubic_weights(b)
+    g = 0.0
+    for di in range(4):
+        row = N_TERMS + min(max(i + di - 1, 0), nu - 1) * npp
+        line = 0.0
+        for dj in range(4):
+            line += wp[dj] * coef[row + min(max(j + dj - 1, 0), npp - 1)]
+        g += wu[di] * line
+    return g * KG_PER_G
+
+
+def table_matrix(u: np.ndarray, p_bar: np.ndarray) -> np.ndarray:
+    """(n, :data:`TABLE_SIZE`) matrix whose product with a table [g/s] is :func:`table_flow`
+    at voltages ``u`` [V] and pressures ``p_bar`` [bar] in g/s: the regressors of a fit of the
+    table (the same weights, evaluated through :func:`table_flow` on unit tables)."""
+    u, p = np.broadcast_arrays(np.asarray(u, dtype=float), np.asarray(p_bar, dtype=float))
+    u, p = u.ravel(), p.ravel()
+    out = np.empty((u.size, TABLE_SIZE))
+    _table_rows(u, p, out)
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _table_rows(u: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    unit = np.zeros(N_TERMS + TABLE_SIZE)
+    for m in range(TABLE_SIZE):
+        unit[N_TERMS + m] = 1.0
+        for n in range(u.shape[0]):
+            out[n, m] = table_flow(unit, u[n], p[n]) / KG_PER_G
+        unit[N_TERMS + m] = 0.0
+
+
 def flow_matrix(u: np.ndarray | float, p_bar: np.ndarray | float) -> np.ndarray:
     """(n, 21) matrix of Eq. 8's terms (:data:`FLOW_TERMS`) for voltages ``u`` [V] and
     pressures ``p_bar`` [bar] (broadcast against each other, flattened): the regressors of a
@@ -69,9 +156,14 @@ def flow_matrix(u: np.ndarray | float, p_bar: np.ndarray | float) -> np.ndarray:
 
 def mass_flow(coef: np.ndarray, u: np.ndarray | float, p_bar: np.ndarray | float
               ) -> np.ndarray:
-    """Eq. 8 over arrays: mass flow [kg/s] at voltages ``u`` [V] and pressures ``p_bar`` [bar]
-    (broadcast, flattened), coefficients ``coef`` in the paper's order [g/s]."""
-    return flow_matrix(u, p_bar) @ np.asarray(coef, dtype=float) * KG_PER_G
+    """The flow map over arrays: mass flow [kg/s] at voltages ``u`` [V] and pressures
+    ``p_bar`` [bar] (broadcast, flattened); ``coef`` Eq. 8's coefficients in the paper's order
+    [g/s], optionally followed by the correction table (:func:`table_flow`)."""
+    coef = np.asarray(coef, dtype=float)
+    g = flow_matrix(u, p_bar) @ coef[:N_TERMS]
+    if coef.size > N_TERMS:
+        g += table_matrix(u, p_bar) @ coef[N_TERMS:]
+    return g * KG_PER_G
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -82,12 +174,17 @@ def chamber_inflow(coef: np.ndarray, u: float, p: float, p_supply: float,
     ``p_supply`` [Pa] is the actual supply; at 10 bar this is Eq. 8 with p clamped to [1, 10] bar
     and no outflow at or below atmospheric pressure. ``gain_charge`` and ``gain_discharge``
     multiply the flow where it fills (q > 0) and empties (q < 0) the chamber: an individual
-    valve's flow map differs from the paper's by a factor per direction.
+    valve's flow map differs from the paper's by a factor per direction. ``coef`` is the flow
+    map: Eq. 8's 21 coefficients, optionally followed by the correction table
+    (:func:`table_flow`), added before the gains.
     """
     span = (p_supply - P_ATM) / (P_SUPPLY_NOMINAL - P_ATM)
     p_map = 1.0 + (p - P_ATM) * (1e-5 / span)
     p_map = min(max(p_map, 1.0), 10.0)
-    q = span * flow_polynomial(coef, u, p_map)
+    q = flow_polynomial(coef, u, p_map)
+    if coef.shape[0] > N_TERMS:
+        q += table_flow(coef, u, p_map)
+    q *= span
     if q < 0.0:
         return 0.0 if p <= P_ATM else gain_discharge * q
     return gain_charge * q

@@ -103,7 +103,7 @@ class Constants(NamedTuple):
     valve_h: np.ndarray
     delay_samples: int  #: whole samples of the valve's transport delay
     hysteresis: np.ndarray  #: play thresholds [V], one per element; empty = off
-    flow_coef: np.ndarray  #: Eq. 8 coefficients
+    flow_coef: np.ndarray  #: the flow map: Eq. 8's coefficients, then its correction table
     gain_charge: float  #: factor on the flow filling a chamber
     gain_discharge: float  #: factor on the flow emptying a chamber
     valve_gain: float  #: u_eq per u_f (jet-pipe deflection per volt relative to Eq. 5)

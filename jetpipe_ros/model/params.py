@@ -21,6 +21,7 @@ import yaml
 from jetpipe_ros.fileio import read_yaml, section_applies
 from jetpipe_ros.model.chamber import chamber_volumes
 from jetpipe_ros.model.errors import ParameterError
+from jetpipe_ros.model.flow import N_TERMS, TABLE_P, TABLE_SIZE, TABLE_U
 from jetpipe_ros.model.friction import FRICTION_FORMS, MAX_ELEMENTS
 
 NODE_NAME = "actuator_sim"
@@ -124,7 +125,12 @@ _BASE: list[ParamSpec] = [
     # Mass flow map, Eq. 8.
     _p("flow.coefficients", list(FLOW_COEFFICIENTS),
        "Eq. 8 polynomial coefficients (u in V, p in bar, result in g/s), paper order", "",
-       length=21),
+       length=N_TERMS),
+    _p("flow.table", [0.0] * TABLE_SIZE,
+       f"Correction to Eq. 8, cubic between nodes (u in V, p in bar, result in g/s): entry "
+       f"i * {TABLE_P.size} + j at u = {TABLE_U[0]:g} + {TABLE_U[1] - TABLE_U[0]:g} i, "
+       f"p = {TABLE_P[0]:g} + {TABLE_P[1] - TABLE_P[0]:g} j; zero: Eq. 8 alone", "g/s",
+       length=TABLE_SIZE),
     _p("flow.gain_charge", 1.0, "Factor on the Eq. 8 flow where it fills a chamber (q > 0): an "
        "individual valve's receiver differs from the paper's by several %", "", 0.1, 10.0),
     _p("flow.gain_discharge", 1.0, "Factor on the Eq. 8 flow where it empties a chamber "

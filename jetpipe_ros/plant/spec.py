@@ -182,6 +182,9 @@ class PlantSpec:
             raise PlantError("flow.coefficients: the plant's flow map is the paper's Eq. 8 "
                              "(jetpipe_ros.plant.valve.EQ8); an individual valve differs by "
                              "flow.gain_charge and flow.gain_discharge")
+        if any(self.params["flow.table"]):
+            raise PlantError("flow.table: the plant's flow map is the paper's Eq. 8; a map of "
+                             "another shape is its flow_map_shape effect")
         if "elastoplastic_friction" in effects and "measured_seal" in effects:
             raise PlantError("elastoplastic_friction and measured_seal are both friction laws "
                              "of the piston: switch on one")
