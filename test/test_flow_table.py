@@ -160,3 +160,23 @@ def test_jetpipe_identify_writes_the_table_it_keeps_and_says_why(which, request,
 def test_one_test_is_too_few_to_choose_the_smoothness(departing):
     with pytest.raises(DatasetError, match=r"flow table: 1 constant-volume .* at least 2"):
         identify_flow_table(_tests(departing)[:1], NOISY, NOISY["flow.coefficients"])
+
+
+def test_selfcheck_flow_table_diagnoses_against_each_records_own_table(tmp_path, monkeypatch):
+    """``jetpipe selfcheck --flow-table``: the case's diagnosis gets the parameters
+    ``jetpipe identify --procedures flow_table`` finds on the case's own records."""
+    from jetpipe_ros.workflows import selfcheck
+
+    class Diagnosed(Exception):
+        pass
+
+    def diagnose(data, out, params, **kwargs):
+        raise Diagnosed(params)
+
+    monkeypatch.setattr(selfcheck, "diagnose", diagnose)
+    case = selfcheck.make_cases(1, 7, shape=True)[0]
+    with pytest.raises(Diagnosed) as given:
+        selfcheck.run_case(case, lambda truth, root, seed: _charge_tests(root, AMPLITUDE), None,
+                           flow_table=True)
+    (params,) = given.value.args
+    assert case.flow_table is True and max(map(abs, params["flow.table"])) > 0.3

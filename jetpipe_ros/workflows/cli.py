@@ -91,6 +91,7 @@ def _selfcheck(args: argparse.Namespace) -> int:
                             deviate=args.deviations, source=args.truth,
                             scheduler=args.scheduler, restart=args.restart,
                             shape=args.flow_map_shape, kinds=args.kinds,
+                            flow_table=args.flow_table,
                             progress=lambda line: print(line, flush=True))  # also into a file
     lo, hi = summary["top1_interval"]
     print(f"\n{summary['cases']} cases in {summary['seconds']:.0f} s: top-1 accuracy "
@@ -168,4 +169,9 @@ def add_command(subparsers) -> None:
                    help="give every plant bench a flow map departing from Eq. 8 within the "
                         "paper's fit error (0.2-0.5 g/s, smooth, nulls kept): the diagnosis's "
                         "known limit (docs/selfcheck.md); off by default")
+    c.add_argument("--flow-table", action="store_true",
+                   help="diagnose each case against the flow map's correction table identified "
+                        "on its own constant-volume tests (jetpipe identify --procedures "
+                        "flow_table), as a user whose valve departs from Eq. 8 would; off by "
+                        "default")
     c.set_defaults(func=_selfcheck)

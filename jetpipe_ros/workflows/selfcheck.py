@@ -51,10 +51,11 @@ import yaml
 from distributed import as_completed
 
 from jetpipe_ros.campaign import campaign_dataset as on_model
-from jetpipe_ros.dataset import read_dataset
+from jetpipe_ros.dataset import DatasetError, read_dataset
 from jetpipe_ros.workflows.cluster import Cluster
 from jetpipe_ros.workflows.diagnose import diagnose
 from jetpipe_ros.fileio import to_json, write_files, write_text
+from jetpipe_ros.identify import identify
 from jetpipe_ros.model import EFFECTS, ModelParams, ParameterError, simulate
 from jetpipe_ros.model.params import end_stop_volumes
 from jetpipe_ros.plant import REAL_EFFECTS, PlantSpec
@@ -197,6 +198,9 @@ class Case:
     not_judged: list = field(default_factory=list)
     gap_nominal: float = 0.0
     gap_augmented: float = 0.0
+    #: with ``flow_table``: whether the flow map's correction table identified on the case's
+    #: own constant-volume tests was kept (None: not identified)
+    flow_table: bool | None = None
     seconds: float = 0.0
 
     @property
@@ -363,11 +367,14 @@ class SelfcheckError(ParameterError):
 
 
 def run_case(case: Case, make_dataset: Callable[[ModelParams | PlantSpec, Path, int], None],
-             cases_dir: str | None) -> Case:
+             cases_dir: str | None, flow_table: bool = False) -> Case:
     """Record ``case``'s dataset in a temporary directory, diagnose it blind (its fits in this
     process) and score it; return the case with the verdict filled in. With ``cases_dir`` the
     diagnosis's outputs, the truth (``truth.yaml``) and the scored case (``result.json``, written
-    last and atomically: the mark of a finished case) go to ``cases_dir/caseNN/``."""
+    last and atomically: the mark of a finished case) go to ``cases_dir/caseNN/``. With
+    ``flow_table`` the diagnosis runs against the flow map's correction table identified on the
+    record's own constant-volume tests (``jetpipe identify --procedures flow_table``), as a
+    user whose valve departs from Eq. 8 would run it."""
     t0 = time.perf_counter()
     name = f"case{case.index:02d}"
     work = Path(tempfile.mkdtemp(prefix=f"jetpipe-selfcheck-{name}-"))
@@ -382,7 +389,14 @@ def run_case(case: Case, make_dataset: Callable[[ModelParams | PlantSpec, Path, 
         case.deviated = bool(case.deviations) and \
             signature(bench, nominal, data) >= VISIBLE_SIGMAS
         out = (Path(cases_dir) if cases_dir else work / "out") / name
-        result = diagnose(data, out, workers=1, quiet=True)
+        params = None
+        if flow_table:
+            try:
+                found = identify(read_dataset(data), procedures=["flow_table"])
+                case.flow_table, params = found.table.kept, found.params
+            except DatasetError:  # no two constant-volume tests with both pressures
+                pass
+        result = diagnose(data, out, params, workers=1, quiet=True)
         write_text(out / "truth.yaml", _truth_yaml(truth))
         v = result["verdict"]
         case.verdict, case.verdict_params = v["effect"], v["params"]
@@ -416,7 +430,9 @@ def _configuration(cases_dir: Path, config: dict, restart: bool) -> dict[int, Ca
         if old != config:
             flags = lambda c: (f"--cases {c['cases']} --seed {c['seed']} --truth {c['truth']} "  # noqa: E731
                                f"--{'' if c['deviations'] else 'no-'}deviations --logger "
-                               f"{c.get('logger') or 'none'} --rate {c.get('rate', 1000.0):g}")
+                               f"{c.get('logger') or 'none'} --rate {c.get('rate', 1000.0):g}"
+                               f"{' --flow-map-shape' if c.get('flow_map_shape') else ''}"
+                               f"{' --flow-table' if c.get('flow_table') else ''}")
             raise SelfcheckError(f"{cases_dir.parent}: holds a self-check run with "
                                  f"{flags(old)}, not {flags(config)}: give another --out, or "
                                  f"--restart to discard it")
@@ -443,7 +459,7 @@ def run_selfcheck(n: int, seed: int,
                   progress: Callable[[str], None] = print, deviate: bool = True,
                   source: str = "plant", scheduler: str | None = None,
                   restart: bool = False, shape: bool = False,
-                  kinds: Sequence[str] = ()) -> dict:
+                  kinds: Sequence[str] = (), flow_table: bool = False) -> dict:
     """Run ``n`` cases; ``make_dataset(truth, root, seed)`` writes a noisy dataset to root.
 
     The cases run in parallel, one per task on the workers of a Dask cluster
@@ -457,7 +473,8 @@ def run_selfcheck(n: int, seed: int,
     departs from Eq. 8 within the fit's error (:func:`make_cases`). With ``kinds`` only the
     cases of those kinds (:attr:`Case.kind`) among the ``n`` run and are scored: the same cases,
     sizes and seeds as in the whole run, so a later run of all ``n`` in the same ``out_dir``
-    computes only the rest.
+    computes only the rest. With ``flow_table`` each case is diagnosed against the flow map's
+    correction table identified on its own records (:func:`run_case`).
     """
     cases = select_kinds(make_cases(n, seed, deviate, source, shape), kinds)
     cases_dir = out_dir / "cases" if out_dir is not None else None
@@ -466,6 +483,8 @@ def run_selfcheck(n: int, seed: int,
         config = {"cases": n, "seed": seed, "truth": source, "deviations": deviate}
         if shape:
             config["flow_map_shape"] = True
+        if flow_table:
+            config["flow_table"] = True
         if isinstance(make_dataset, Logged):
             config.update(logger=make_dataset.logger, rate=make_dataset.rate)
         done = _configuration(cases_dir, config, restart)
@@ -493,9 +512,9 @@ def run_selfcheck(n: int, seed: int,
         client = cluster.client if todo else None
         if client is None:
             for case in todo:
-                report(run_case(case, make_dataset, where))
+                report(run_case(case, make_dataset, where, flow_table))
         else:
-            futures = [client.submit(run_case, case, make_dataset, where, pure=False)
+            futures = [client.submit(run_case, case, make_dataset, where, flow_table, pure=False)
                        for case in todo]
             index = {f.key: c.index for f, c in zip(futures, todo)}
             for fut in as_completed(futures):
@@ -514,6 +533,7 @@ def run_selfcheck(n: int, seed: int,
     if kinds:
         summary["kinds"] = sorted({c.kind for c in cases})
     summary["flow_map_shape"] = shape
+    summary["flow_table"] = flow_table
     if isinstance(make_dataset, Logged):
         summary["logged"] = make_dataset.describe()
     summary["ran_on"] = str(cluster)
@@ -649,6 +669,8 @@ def render(summary: dict) -> str:
     logged = f", logged at {summary['logged']}" if summary.get("logged") else ""
     shape = ", every flow map of another shape than Eq. 8" if summary.get("flow_map_shape") \
         else ""
+    if summary.get("flow_table"):
+        shape += ", diagnosed against the flow map's correction table identified on each record"
     only = f", only the kinds {', '.join(summary['kinds'])}" if summary.get("kinds") else ""
     lines = [f"# jetpipe selfcheck: {summary['cases']} cases in {summary['seconds']:.0f} s, "
              f"data from the {summary['source']}, {dev} parameter deviations{shape}{logged}"
