@@ -10,10 +10,10 @@ from typing import Any
 import numpy as np
 
 from jetpipe_ros.figures import png_img, pyplot
+from jetpipe_ros.identify.flow_map import flow_samples
 from jetpipe_ros.identify.friction import QUANTITIES, paper_planes
 from jetpipe_ros.identify.identify import Identification
 from jetpipe_ros.identify.valve import peak, response
-from jetpipe_ros.identify.flow_map import flow_samples
 from jetpipe_ros.model.flow import TABLE_P, TABLE_U, mass_flow
 from jetpipe_ros.model.friction import plane
 from jetpipe_ros.model.params import FLOW_COEFFICIENTS, FRICTION_UNITS
