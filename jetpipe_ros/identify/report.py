@@ -115,19 +115,22 @@ def figures(ident: Identification) -> list[tuple[str, str]]:
     out = []
     if ident.flow is not None:
         s = ident.flow.samples
+        kept = ident.table is not None and ident.table.kept
+        identified = ident.flow.coefficients + (ident.table.table if kept else [])
+        what = "Eq. 8 with its table" if kept else "Eq. 8"
         fig, ax = plt.subplots(figsize=(8, 4.5))
         for level in ident.flow.levels:
             m = np.isclose(s.u, level, atol=5e-4)
             if not m.any():
                 continue
             p = np.linspace(s.p_bar[m].min(), s.p_bar[m].max(), 50)
-            line, = ax.plot(p, mass_flow(ident.flow.coefficients, np.full(50, level), p) * 1e3,
+            line, = ax.plot(p, mass_flow(identified, np.full(50, level), p) * 1e3,
                             label=f"{level:g} V")
             ax.plot(s.p_bar[m][::20], s.q[m][::20] * 1e3, ".", ms=2, color=line.get_color())
             ax.plot(p, mass_flow(FLOW_COEFFICIENTS, np.full(50, level), p) * 1e3, ":",
                     color=line.get_color())
         ax.set(xlabel="chamber pressure [bar]", ylabel="mass flow [g/s]",
-               title="Flow map: samples (dots), identified Eq. 8 (lines), paper (dotted)")
+               title=f"Flow map: samples (dots), identified {what} (lines), paper (dotted)")
         ax.legend(fontsize=7, ncol=2)
         out.append(("Mass flow map (Sec. 2.3)", png_img(fig)))
     if ident.table is not None and ident.table.kept:
