@@ -2,7 +2,7 @@
 properties that define it, and its identification from constant-volume tests recorded on the
 plant (separate code, its own flow map) whose valve departs from Eq. 8, or does not.
 
-Figures (docs/identification.md, *The correction table*): on the plant with a departure of
+Figures (docs/identification.md, *The flow map's correction table*): on the plant with a departure of
 amplitude 0.4 g/s (phase 0.7 rad), Eq. 8 misses the true map by 0.165 g/s RMS where the tests
 took samples and Eq. 8 with the identified table by 0.012 g/s; on the plant whose map is Eq. 8,
 seeds 0-12, the best table lowers the tests left out by 0.6-0.8 % of their mean square error,
@@ -16,9 +16,9 @@ import pytest
 
 from jetpipe_ros.campaign import parse_campaign
 from jetpipe_ros.campaign.offline import run_campaign_offline
+from jetpipe_ros.cli import main
 from jetpipe_ros.dataset import COMPLETE, DatasetError, read_dataset
 from jetpipe_ros.identify import experiments as kinds
-from jetpipe_ros.cli import main
 from jetpipe_ros.identify import synthetic as syn
 from jetpipe_ros.identify.experiments import of_kind, recordings
 from jetpipe_ros.identify.flow_map import MIN_GAIN, flow_samples, identify_flow_table
