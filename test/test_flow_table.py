@@ -110,9 +110,10 @@ def _tests(dataset):
 
 def test_the_table_carries_a_valves_departure_from_eq8(departing):
     """Where the tests took samples, Eq. 8 misses the plant's map by 0.165 g/s RMS (the
-    departure's size) and Eq. 8 with the identified table by 0.012 g/s: asserted under a
-    quarter of Eq. 8's miss and under 0.03 g/s, a third of the samples' own scatter (0.09 g/s,
-    the derivative of the pressure noise)."""
+    departure's size) and Eq. 8 with the identified table by 0.012 g/s: asserted under a tenth
+    of Eq. 8's miss, so a table that carried the departure 10 % too small or too large (0.020
+    g/s with the scatter) fails; the samples' own scatter is 0.09 g/s (the derivative of the
+    pressure noise)."""
     recs = _tests(departing)
     eq8 = NOISY["flow.coefficients"]
     found = identify_flow_table(recs, NOISY, eq8)
@@ -124,7 +125,7 @@ def test_the_table_carries_a_valves_departure_from_eq8(departing):
     miss_eq8 = np.sqrt(np.mean((mass_flow(eq8, u, p) - truth) ** 2))
     miss_table = np.sqrt(np.mean((mass_flow(list(eq8) + found.table, u, p) - truth) ** 2))
     assert 1.2e-4 < miss_eq8 < 2.2e-4
-    assert miss_table < min(0.25 * miss_eq8, 3e-5)
+    assert miss_table < 0.1 * miss_eq8
 
 
 def test_no_table_is_fitted_to_the_noise_of_a_valve_eq8_describes(exact):

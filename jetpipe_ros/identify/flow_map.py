@@ -113,6 +113,12 @@ def flow_samples(rec: Recording, params: Mapping[str, Any]) -> FlowSamples:
     return FlowSamples(np.concatenate(us), np.concatenate(ps), np.concatenate(qs))
 
 
+def pooled(parts: Sequence[FlowSamples]) -> FlowSamples:
+    """The samples of several tests as one set."""
+    return FlowSamples(*(np.concatenate([getattr(x, f) for x in parts])
+                         for f in ("u", "p_bar", "q")))
+
+
 def identify_flow_map(recs: list[Recording], params: Mapping[str, Any]) -> FlowMapResult:
     """Fit Eq. 8 to the charge/discharge tests ``recs`` (chamber geometry from ``params``).
 
@@ -123,7 +129,7 @@ def identify_flow_map(recs: list[Recording], params: Mapping[str, Any]) -> FlowM
         raise DatasetError("flow map: no constant-volume charge/discharge test (piston: locked, "
                            "piecewise-constant command) in the dataset")
     parts = [flow_samples(r, params) for r in recs]
-    s = FlowSamples(*(np.concatenate([getattr(x, f) for x in parts]) for f in ("u", "p_bar", "q")))
+    s = pooled(parts)
     levels = sorted({round(float(v), 3) for v in s.u})
     if len(levels) < MIN_LEVELS:
         raise DatasetError(
@@ -171,7 +177,7 @@ class FlowTableResult:
     smoothing: float  #: the roughness weight chosen by cross-validation [-]
     rms_before: float  #: RMS of Eq. 8's error on the samples left out, over all folds [kg/s]
     rms_after: float  #: the same with the table fitted without them [kg/s]
-    rms_fit: float  #: RMS of the error left by Eq. 8 and the table on all samples [kg/s]
+    samples: FlowSamples  #: the samples fitted
     experiments: list[str]  #: the charge/discharge tests used
 
 
@@ -255,10 +261,9 @@ def identify_flow_table(recs: list[Recording], params: Mapping[str, Any],
     n = sum(e.size for e in errors)
     kept = scores[best] <= (1.0 - MIN_GAIN) * before
     table = _solve(gram_all, rhs_all, penalty, SMOOTHING[best]) if kept else np.zeros(TABLE_SIZE)
-    fit = np.concatenate([e - a @ table for a, e in zip(designs, errors)])
     return FlowTableResult(
         table=[float(v) for v in table], kept=bool(kept), smoothing=float(SMOOTHING[best]),
         rms_before=math.sqrt(before / n) * KG_PER_G,
         rms_after=math.sqrt(scores[best] / n) * KG_PER_G,
-        rms_fit=float(np.sqrt(np.mean(fit ** 2))) * KG_PER_G,
+        samples=pooled(parts),
         experiments=[r.name for r in recs])

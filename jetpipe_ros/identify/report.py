@@ -10,11 +10,11 @@ from typing import Any
 import numpy as np
 
 from jetpipe_ros.figures import png_img, pyplot
-from jetpipe_ros.identify.flow_map import flow_samples
 from jetpipe_ros.identify.friction import QUANTITIES, paper_planes
 from jetpipe_ros.identify.identify import Identification
 from jetpipe_ros.identify.valve import peak, response
-from jetpipe_ros.model.flow import TABLE_P, TABLE_U, mass_flow
+from jetpipe_ros.model.actuator import flow_map
+from jetpipe_ros.model.flow import N_TERMS, TABLE_P, TABLE_U, mass_flow
 from jetpipe_ros.model.friction import plane
 from jetpipe_ros.model.params import FLOW_COEFFICIENTS, FRICTION_UNITS
 from jetpipe_ros.model.valve import jetpipe_position
@@ -99,10 +99,8 @@ def table_figure(ident: Identification, plt: Any) -> str:
     image = ax.pcolormesh(TABLE_P, TABLE_U, values, shading="gouraud", cmap="RdBu_r",
                           vmin=-top, vmax=top)
     fig.colorbar(image, ax=ax, label="correction to Eq. 8 [g/s]")
-    for rec in ident.recordings:
-        if rec.name in ident.table.experiments:
-            s = flow_samples(rec, ident.base)
-            ax.plot(s.p_bar[::40], s.u[::40], "k.", ms=1)
+    s = ident.table.samples
+    ax.plot(s.p_bar[::40], s.u[::40], "k.", ms=1)
     ax.set(xlabel="chamber pressure [bar]", ylabel="equivalent voltage u_eq [V]",
            title="Flow map correction table (colour) and the samples it was fitted to (dots)")
     return png_img(fig)
@@ -115,9 +113,8 @@ def figures(ident: Identification) -> list[tuple[str, str]]:
     out = []
     if ident.flow is not None:
         s = ident.flow.samples
-        kept = ident.table is not None and ident.table.kept
-        identified = ident.flow.coefficients + (ident.table.table if kept else [])
-        what = "Eq. 8 with its table" if kept else "Eq. 8"
+        identified = flow_map(ident.params)
+        what = "Eq. 8 with its table" if identified.size > N_TERMS else "Eq. 8"
         fig, ax = plt.subplots(figsize=(8, 4.5))
         for level in ident.flow.levels:
             m = np.isclose(s.u, level, atol=5e-4)
