@@ -136,7 +136,7 @@ def controller_reaction(prepared: Prepared) -> tuple[int | None, float]:
     regressed on those of the position at every lag of :data:`LAGS` at once: the smoothing
     spreads each noise sample over its neighbours, so a lag tested alone would borrow the
     reaction of the next one."""
-    closed = [r for r in prepared.records if r.entry.extra.get("kind") == "closed_loop"]
+    closed = [r for r in prepared.records if r.closed_loop]
     records = closed or [r for r in prepared.records if not r.locked and not r.regulated]
     width = max(LAGS) - min(LAGS)
     rows_x, rows_u = [], []

@@ -65,6 +65,12 @@ class Record:
         return self.entry.locked
 
     @property
+    def closed_loop(self) -> bool:
+        """Declared closed loop in ``dataset.yaml`` (``kind: closed_loop``): the command was
+        computed from the measured position."""
+        return self.entry.extra.get("kind") == "closed_loop"
+
+    @property
     def regulated(self) -> bool:
         """Friction test on the regulated rig (``regulated: true``): regulators, not the valve,
         hold the chamber pressures, so only the motion is the model's to explain."""
