@@ -80,3 +80,28 @@ def test_an_ambiguous_verdict_on_fewer_sensors_names_the_pressure_that_would_tel
     assert said.endswith("Logged with chamber 1's pressure, these very experiments would tell "
                          "them apart too: the two models' predictions of it differ by 4.2 x a "
                          "pressure sensor's noise.")
+
+
+def test_a_none_says_no_effect_once_and_what_it_cannot_rule_out_below():
+    """The headline of a `none` after recalibration: "no unmodelled effect" once (the reason
+    began with it too), and what the answer cannot rule out only in its own paragraph, with the
+    sensor that would tell, not also as the reason's long tail."""
+    from jetpipe_ros.diagnosis.diagnose import NOT_RULED_OUT
+    from jetpipe_ros.diagnosis.verdict import NO_EFFECT
+
+    result = json.loads(gzip.decompress(STORED.read_bytes()))
+    result["verdict"].update(effect="none", effects=[], params={}, stderr={},
+                             reason=f"{NO_EFFECT}the nominal parameters are off (x); "
+                                    f"recalibrated, the held-out gap shrinks from 4.73 % to "
+                                    f"0.17 %; {NOT_RULED_OUT}valve_delay: at its typical size")
+    row = {"signature_gap_pct": 1.0, "left_gap_pct": 0.2, "imitated": True, "knobs": {},
+           "with_sensors": {"p1": 2.0, "p2": 1.9, "p1+p2": 2.2}}
+    result["visibility"].update(not_ruled_out=["valve_delay"],
+                                imitated_by_recalibration={"valve_delay": row})
+    text = summary(result)
+    head = text.split("</p>")[0]
+    assert head.endswith("<b>No unmodelled effect identified:</b> the nominal parameters are "
+                         "off (x); recalibrated, the held-out gap shrinks from 4.73 % to "
+                         "0.17 %.")
+    assert text.lower().count("no unmodelled effect") == 1
+    assert text.count("valve_delay") == 2  # "Not ruled out" and the sensor that would tell

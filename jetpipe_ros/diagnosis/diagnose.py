@@ -76,6 +76,8 @@ JOINT_BUDGET = 120
 #: 238 and 167 runs (0.91 and 1.24 %).
 CARRIER_BUDGET = 2 * JOINT_BUDGET
 CAL = CALIBRATION.name
+#: How the words for the effects a ``none`` cannot rule out begin in the verdict's reason.
+NOT_RULED_OUT = "these records cannot rule out "
 
 
 @dataclass
@@ -579,7 +581,7 @@ def _not_ruled_out(hidden: Mapping[str, dict]) -> str:
     """Words for the effects the recalibration could imitate (:func:`imitated_effects`)."""
     each = ", ".join(f"{row['candidate']} {row['signature_gap_pct']:.2f} % -> "
                      f"{row['left_gap_pct']:.2f} %" for _, row in sorted(hidden.items()))
-    return (f"these records cannot rule out {', '.join(sorted(hidden))}: at its typical size "
+    return (f"{NOT_RULED_OUT}{', '.join(sorted(hidden))}: at its typical size "
             f"the recalibration imitates each to within the {NOISE_GAP} % that counts as beyond "
             f"noise ({each}; the knobs in visibility.imitated_by_recalibration)"
             + sensor_words(hidden))

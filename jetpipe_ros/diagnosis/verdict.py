@@ -60,6 +60,8 @@ AMBIGUOUS = 1.25
 #: (63 um of 12.6 mm) on the default campaign; a systematic error smaller than that is below
 #: what a controller designer could see in the recordings.
 NOISE_GAP = 0.5
+#: How the reason of a ``none`` whose recalibration explains the gap begins (:func:`settle`).
+NO_EFFECT = "no unmodelled effect: "
 
 
 @dataclass
@@ -440,7 +442,7 @@ def settle(calibration: Ranked, on_cal: Verdict, alone: Verdict, given: Ranked |
                            f"{alt.fit.holdout.gap:.2f} %, beyond noise too: it does what "
                            f"mis-set parameters do, not what is left")
             return Settled(calibration.fit, True, on_cal, reason, unlisted=True)
-        reason = (f"no unmodelled effect: the nominal parameters are off ({cal_words}); "
+        reason = (f"{NO_EFFECT}the nominal parameters are off ({cal_words}); "
                   f"recalibrated, the held-out gap shrinks from {calibration.base_gap:.2f} % "
                   f"to {calibration.fit.holdout.gap:.2f} %")
         if alt is not None and alt.fit.holdout.gap <= AMBIGUOUS * calibration.fit.holdout.gap:

@@ -18,8 +18,10 @@ import yaml
 from jetpipe_ros.diagnosis.calibration import NAME as CALIBRATION_GROUP
 from jetpipe_ros.diagnosis.collinearity import ADDED, imitated_effects, telling
 from jetpipe_ros.diagnosis.data import Prepared
+from jetpipe_ros.diagnosis.diagnose import NOT_RULED_OUT
 from jetpipe_ros.diagnosis.nuisance import words as nuisance_words
 from jetpipe_ros.diagnosis.separation import words as stand_in_words
+from jetpipe_ros.diagnosis.verdict import NO_EFFECT
 from jetpipe_ros.figures import png_img, pyplot
 
 COLORS = {"data": "#444444", "nominal": "#d62728", "augmented": "#1f77b4"}
@@ -150,8 +152,8 @@ def overlay_figure(prepared: Prepared, preds: dict, result: dict) -> str:
         label, k = units[s]
         ax.plot(rec.t, rec.signal(s) * k, color=COLORS["data"], lw=1.2, label="data")
         for name in ("nominal", "augmented"):
-            if name == "augmented" and result["verdict"]["effect"] == "none":
-                continue
+            if name == "augmented" and preds["augmented"] is preds["nominal"]:
+                continue  # the augmented model is the nominal one
             ax.plot(rec.t, preds[name][best].signal(s) * k, color=COLORS[name], lw=0.9,
                     label=name)
         ax.set_ylabel(label)
@@ -183,28 +185,40 @@ def regime_figure(result: dict) -> str:
     return png_img(fig)
 
 
+#: The frequency response's output signals: (what, unit of its gain).
+RESPONSE = {"p1": ("chamber 1 pressure", "Pa/V"), "p2": ("chamber 2 pressure", "Pa/V"),
+            "y": ("position", "m/V")}
+
+
 def frequency_figure(result: dict) -> str:
-    """Bode plot, command to chamber 1 pressure: data, nominal and augmented."""
+    """Bode plot, command to the signal the diagnosis chose (chamber 1's pressure, else the
+    one there is): data, nominal and augmented (when it is another model than the nominal)."""
     plt = pyplot()
     fr = result["localization"]["frequency"]
     if not fr or not fr.get("freq"):
         return ""
+    what, unit = RESPONSE[fr["signal"]]
     f = np.array(fr["freq"])
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
     for name in ("data", "nominal", "augmented"):
-        if name == "augmented" and result["verdict"]["effect"] == "none":
-            continue
+        if name == "augmented" and fr["gain"]["augmented"] == fr["gain"]["nominal"]:
+            continue  # the same predictions: the augmented model is the nominal one
         style = dict(color=COLORS[name], lw=1.0, ms=4 if name == "data" else 2,
                      marker="o" if name == "data" else ".", ls="none" if name == "data"
                      else "-")
         a1.semilogx(f, 20 * np.log10(np.maximum(np.array(fr["gain"][name]), 1e-300)),
                     label=name, **style)
         a2.semilogx(f, np.array(fr["phase_deg"][name]), **style)
-    a1.set_ylabel("gain [dB Pa/V]")
+    a1.set_ylabel(f"gain [dB {unit}]")
     a2.set_ylabel("phase [deg]")
     a2.set_xlabel("frequency [Hz]")
+    # Plain labels where the bands meet (matplotlib's minor log labels overlap at 3-4 Hz).
+    ticks = [t for t in (2, 5, 10, 20, 50) if f[0] <= t <= f[-1]]
+    a2.set_xticks(ticks, [f"{t:g}" for t in ticks])
+    a2.set_xticks([], minor=True)
     a1.legend(fontsize=8)
-    a1.set_title("command to chamber 1 pressure (bins where the data are coherent)")
+    a1.set_title(f"command to {what}: open-loop experiments, bins where the data are "
+                 f"coherent")
     return png_img(fig)
 
 
@@ -223,7 +237,9 @@ def summary(result: dict) -> str:
         lines.append(f"<b>The model does not describe this hardware.</b> "
                      f"{html.escape(v['reason'])}. No effect is named.")
     elif v["effect"] == "none":
-        lines.append(f"<b>No unmodelled effect identified.</b> {html.escape(v['reason'])}.")
+        # What the answer cannot rule out is said below ("Not ruled out"), with a table.
+        reason = v["reason"].split("; " + NOT_RULED_OUT)[0].removeprefix(NO_EFFECT)
+        lines.append(f"<b>No unmodelled effect identified:</b> {html.escape(reason)}.")
     elif v["effect"] == "unlisted":
         lines.append(f"<b>A gap beyond noise remains that no listed effect explains</b> "
                      f"(<code>unlisted</code>, subsystem {html.escape(v['subsystem'])}): "
@@ -558,6 +574,9 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
         "<h3>By subsystem (nominal model, all data, %)</h3>",
         _table(sub_rows, ["subsystem replayed alone", "gap"]),
         "<h3>The paper's metrics (held out)</h3>",
+        f"<p>Gain and phase errors of the response from the command to the "
+        f"{RESPONSE[loc['frequency']['signal']][0]}, over the open-loop experiments.</p>"
+        if loc["frequency"] else "",
         _table(metric_rows, ["metric", "nominal", "augmented"]),
         "<h2>What these experiments can show</h2>",
         "<p>Signature of each candidate at its typical size: the held-out gap [%] it would open "
