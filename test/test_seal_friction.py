@@ -333,3 +333,32 @@ def test_the_diagnosis_force_balance_sees_the_bore_profile(tmp_path):
     assert (direction > 0).sum() > 100 and (direction < 0).sum() > 100
     factor = np.where(direction > 0, 1.3, 0.8)
     assert np.allclose(scaled[sliding], factor * without[sliding], rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.parametrize("flip", ["x", "F"])
+def test_a_record_logged_with_the_other_sign_is_refused_not_fitted(tmp_path, capsys, flip):
+    """A measured record (PK, 1 bar gauge) with its position's sign flipped, or the force's:
+    the friction would give the rod power (mean friction x velocity below 0; as logged
+    +0.03 W, the friction along the motion on 99 % of the moving samples). Refused in one line
+    naming the file, nothing written (the fit had been written, every form missing by half the
+    friction's range)."""
+    rows = np.loadtxt(SEALS / "PK_1bar.csv", delimiter=",", skiprows=1)
+    rows[:, 1 if flip == "x" else 3] *= -1.0
+    t, x, p, force = rows.T
+    rig = _write_rig(tmp_path / "flipped", t, x, p, force)
+    out = tmp_path / "out"
+    assert main(["friction", str(rig), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "rig.csv" in err and "gives the rod power" in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("column, scale, message", [("t", 1e3, "'t'"), ("x", 1e3, "'x'")])
+def test_a_column_in_other_units_is_refused_naming_it(tmp_path, column, scale, message):
+    """Time in ms (a 10 s step) or the position in mm (36 m of travel): refused, naming the
+    column and the unit it must be in."""
+    rows = np.loadtxt(SEALS / "PK_1bar.csv", delimiter=",", skiprows=1)
+    rows[:, "txpF".index(column)] *= scale
+    rig = _write_rig(tmp_path / "units", *rows.T)
+    with pytest.raises(DatasetError, match=message):
+        read_records(rig)

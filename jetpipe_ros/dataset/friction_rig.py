@@ -41,6 +41,13 @@ ROLES = ("train", "holdout")
 #: A grid point farther than this many sample times from any logged row is a gap.
 GAP_TOLERANCE = 0.6
 MIN_ROWS = 50
+#: Longest median sample time [s] read as seconds: a friction record needs samples within the
+#: build-up after a reversal (about 1 mm, a tenth of a second at 10 mm/s); a larger step is a
+#: time column in ms (the public records: 10 ms).
+MAX_SAMPLE_TIME = 1.0
+#: Most travel [m] read as metres: a rig strokes centimetres (the public records: 36 mm), so
+#: more is a position in mm or um.
+MAX_TRAVEL = 10.0
 
 
 @dataclass
@@ -137,6 +144,13 @@ def _read_csv(path: Path) -> tuple[np.ndarray, ...]:
         raise DatasetError(f"{path}: column 'p' has median {np.median(p):g} Pa: it must be the "
                            f"absolute pressure in Pa (gauge bar x 1e5 + 1e5)")
     dt = float(np.median(step))
+    if dt > MAX_SAMPLE_TIME:
+        raise DatasetError(f"{path}: column 't' has a median step of {dt:g}: a rig logs far "
+                           f"faster than one row per {MAX_SAMPLE_TIME:g} s; t must be in "
+                           f"seconds (ms / 1000)")
+    if np.ptp(x) > MAX_TRAVEL:
+        raise DatasetError(f"{path}: column 'x' spans {np.ptp(x):g}: more than "
+                           f"{MAX_TRAVEL:g} m of travel; x must be in metres (mm / 1000)")
     grid = t[0] + dt * np.arange(int(round((t[-1] - t[0]) / dt)) + 1)
     after = np.clip(np.searchsorted(t, grid), 1, t.size - 1)
     nearest = np.minimum(np.abs(t[after] - grid), np.abs(t[after - 1] - grid))
