@@ -270,3 +270,20 @@ def test_friction_test_released_at_once_is_skipped_with_the_reason(tmp_path):
     assert "test jump" in notes and "release the piston progressively" in notes
     assert "exit phase planes not identified" in notes
     assert "friction.entry.viscous" in res.changes()
+
+
+def test_records_without_both_pressures_are_named_and_sent_to_the_diagnosis(tmp_path, capsys):
+    """Every procedure reads both chamber pressures: records of the position alone are refused
+    naming the file and the missing columns, and the message says where fewer sensors go."""
+    ds = syn.record(NOISY, [syn.charge_discharge(1.0, 1.0, 1.0, name="c1")], tmp_path / "ds")
+    path = ds.root / "c1.csv"
+    rows = np.loadtxt(path, delimiter=",", skiprows=1)
+    header = path.read_text().splitlines()[0].split(",")
+    keep = [i for i, c in enumerate(header) if c not in ("p1", "p2")]
+    np.savetxt(path, rows[:, keep], delimiter=",", comments="",
+               header=",".join(header[i] for i in keep))
+    out = tmp_path / "p.yaml"
+    assert main(["identify", str(ds.root), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "c1.csv: no p1 or p2 column" in err and "jetpipe diagnose" in err
+    assert not out.exists()

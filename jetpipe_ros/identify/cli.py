@@ -30,7 +30,16 @@ def _run(args) -> int:
         required = chosen
     else:
         chosen, required = list(PROCEDURES), []
-    data = read_dataset(args.dataset, required=COMPLETE, limits=Limits.from_params(base))
+    data = read_dataset(args.dataset, limits=Limits.from_params(base))
+    for entry, exp in data:
+        missing = [c for c in COMPLETE if getattr(exp, c, None) is None]
+        if missing:
+            raise DatasetError(
+                f"{data.root / entry.file}: no {' or '.join(missing)} column: identification "
+                f"reads the position and both chamber pressures (Eq. 7's flow samples of the "
+                f"locked tests, the valve sweep, the hysteresis, the friction by Newton's law); "
+                f"with fewer sensors 'jetpipe diagnose' judges the model on what there is "
+                f"(docs/real_logs.md)")
     ident = identify(data, base, chosen, required)
     text = summary(ident)
     header = "".join(f"# {line}\n" for line in text.splitlines())
