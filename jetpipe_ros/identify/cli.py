@@ -37,9 +37,10 @@ def _run(args) -> int:
             raise DatasetError(
                 f"{data.root / entry.file}: no {' or '.join(missing)} column: identification "
                 f"reads the position and both chamber pressures (Eq. 7's flow samples of the "
-                f"locked tests, the valve sweep, the hysteresis, the friction by Newton's law); "
-                f"with fewer sensors 'jetpipe diagnose' judges the model on what there is "
-                f"(docs/real_logs.md)")
+                f"locked tests, the valve sweep, the hysteresis, the friction by Newton's law; "
+                f"one chamber alone charges only from its rest pressure up, and the flow map "
+                f"below it would be extrapolated); with fewer sensors 'jetpipe diagnose' judges "
+                f"the model on what there is (docs/real_logs.md)")
     ident = identify(data, base, chosen, required)
     text = summary(ident)
     header = "".join(f"# {line}\n" for line in text.splitlines())
