@@ -268,11 +268,12 @@ def summary(result: dict) -> str:
                          f"correction beyond noise.")
         for effect, cmp in v["form_comparison"].items():
             gaps = cmp["holdout_gap"]
-            rest = ", ".join(f"{f} {g:.2f} %" for f, g in gaps.items() if f != cmp["chosen"])
+            others = [f"{f} {g:.2f} %" for f, g in gaps.items() if f != cmp["chosen"]]
+            rest = (f"; the other form{'s' if len(others) > 1 else ''}: "
+                    f"{html.escape(', '.join(others))}" if others else "")
             lines.append(f"Form of <code>{html.escape(effect)}</code>: <b>"
                          f"{html.escape(cmp['chosen'])}</b> (held-out gap "
-                         f"{gaps.get(cmp['chosen'], float('nan')):.2f} %"
-                         + (f"; the other form: {html.escape(rest)}" if rest else "") + ").")
+                         f"{gaps.get(cmp['chosen'], float('nan')):.2f} %{rest}).")
         lines.append(f"What the effect leaves of the gap it was judged against: "
                      f"{100 * v['remaining_share']:.0f} %.")
         words = v["effect_reason"]
