@@ -103,12 +103,11 @@ def frequency_response(prepared: Prepared, preds: dict[str, Sequence[Prediction 
     sensor's noise drives the command the ratio of the cross-spectra of that signal is minus
     the controller's inverse, not the actuator's response (the direct method's bias under
     feedback; open-loop records are what the paper's metrics assume). Seen on records of the
-    position alone: a flat
-    0.0033 m/V at -180 deg above 47 Hz, the inverse of the campaign's 300 V/m controller, so
-    that the very model that had generated the records missed its 20-70 Hz gain by 34 % (4 %
-    without the closed-loop records). Returns the frequency grid [Hz], gain [signal unit/V] and
-    unwrapped phase [deg] of data and models, and per band the mean absolute gain error [%]
-    and phase error [deg].
+    position alone: a flat 0.0033 m/V at -180 deg above 47 Hz, the inverse of the campaign's
+    300 V/m controller, so that the very model that had generated the records missed its
+    20-70 Hz gain by 34 % (4 % without the closed-loop records). Returns the frequency grid
+    [Hz], gain [signal unit/V] and unwrapped phase [deg] of data and models, and per band the
+    mean absolute gain error [%] and phase error [deg].
     """
     fs = 1.0 / prepared.dt
     keys = ["data", *preds]
