@@ -32,7 +32,7 @@ def _run(args) -> int:
         chosen, required = list(PROCEDURES), []
     data = read_dataset(args.dataset, limits=Limits.from_params(base))
     for entry, exp in data:
-        missing = [c for c in COMPLETE if getattr(exp, c, None) is None]
+        missing = [c for c in COMPLETE if getattr(exp, c) is None]
         if missing:
             raise DatasetError(
                 f"{data.root / entry.file}: no {' or '.join(missing)} column: identification "

@@ -128,8 +128,9 @@ def calibration_figure(result: dict) -> str:
     return png_img(fig)
 
 
-def overlay_figure(prepared: Prepared, preds: dict, result: dict) -> str:
-    """Data, nominal and augmented model on the held-out experiment with the largest gap."""
+def overlay_figure(prepared: Prepared, preds: dict, result: dict, augmented: bool) -> str:
+    """Data, nominal and, when it is another model (``augmented``), augmented model on the
+    held-out experiment with the largest gap."""
     plt = pyplot()
     best, worst = None, -1.0
     for i, rec in enumerate(prepared.records):
@@ -151,9 +152,7 @@ def overlay_figure(prepared: Prepared, preds: dict, result: dict) -> str:
     for ax, s in zip(axes, signals):
         label, k = units[s]
         ax.plot(rec.t, rec.signal(s) * k, color=COLORS["data"], lw=1.2, label="data")
-        for name in ("nominal", "augmented"):
-            if name == "augmented" and preds["augmented"] is preds["nominal"]:
-                continue  # the augmented model is the nominal one
+        for name in ("nominal", "augmented") if augmented else ("nominal",):
             ax.plot(rec.t, preds[name][best].signal(s) * k, color=COLORS[name], lw=0.9,
                     label=name)
         ax.set_ylabel(label)
@@ -190,9 +189,9 @@ RESPONSE = {"p1": ("chamber 1 pressure", "Pa/V"), "p2": ("chamber 2 pressure", "
             "y": ("position", "m/V")}
 
 
-def frequency_figure(result: dict) -> str:
+def frequency_figure(result: dict, augmented: bool) -> str:
     """Bode plot, command to the signal the diagnosis chose (chamber 1's pressure, else the
-    one there is): data, nominal and augmented (when it is another model than the nominal)."""
+    one there is): data, nominal and, when it is another model (``augmented``), augmented."""
     plt = pyplot()
     fr = result["localization"]["frequency"]
     if not fr or not fr.get("freq"):
@@ -200,9 +199,7 @@ def frequency_figure(result: dict) -> str:
     what, unit = RESPONSE[fr["signal"]]
     f = np.array(fr["freq"])
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
-    for name in ("data", "nominal", "augmented"):
-        if name == "augmented" and fr["gain"]["augmented"] == fr["gain"]["nominal"]:
-            continue  # the same predictions: the augmented model is the nominal one
+    for name in ("data", "nominal", "augmented") if augmented else ("data", "nominal"):
         style = dict(color=COLORS[name], lw=1.0, ms=4 if name == "data" else 2,
                      marker="o" if name == "data" else ".", ls="none" if name == "data"
                      else "-")
@@ -540,6 +537,9 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
              "padding:2px 8px;font-size:90%}th{background:#f2f2f2}img{max-width:100%}"
              ".params{overflow-wrap:anywhere;min-width:12em}.wide{overflow-x:auto}"
              ".summary{background:#f5f8fc;border-left:4px solid #1f77b4;padding:0.5em 1em}")
+    # The augmented predictions are another model's (the diagnosis hands over the nominal
+    # predictions themselves when it fitted none)
+    augmented = preds["augmented"] is not preds["nominal"]
     parts = [
         "<!DOCTYPE html><html><head><meta charset='utf-8'>",
         f"<title>jetpipe diagnosis: {html.escape(result['verdict']['effect'])}</title>",
@@ -563,9 +563,9 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
                            *(["second fold gap %"] if folds else []),
                            "shrinkage", "paired t", "t cross-check", "explains",
                            "shrinkage alone", "fitted parameters"]),
-        "<h2>Model against data</h2>", overlay_figure(prepared, preds, result),
+        "<h2>Model against data</h2>", overlay_figure(prepared, preds, result, augmented),
         "<h2>Where the gap lies</h2>", "<h3>By regime (held out)</h3>",
-        regime_figure(result), "<h3>By frequency</h3>", frequency_figure(result),
+        regime_figure(result), "<h3>By frequency</h3>", frequency_figure(result, augmented),
         "<h3>By equation (what the augmented model's equations leave, all data)</h3>",
         f"<p>{html.escape(equation_words(result))}.</p>",
         equations_figure(result, remainders),
