@@ -15,7 +15,11 @@ from scipy.signal import chirp
 from jetpipe_ros.cli import main
 from jetpipe_ros.dataset import DatasetError, Entry, read_dataset, write_dataset
 from jetpipe_ros.workflows import diagnose
+from jetpipe_ros.diagnosis.calibration import CALIBRATION, group
+from jetpipe_ros.diagnosis.candidates import CANDIDATES
 from jetpipe_ros.diagnosis.data import noise_level, prepare
+from jetpipe_ros.diagnosis.fit import fit, switched_off
+from jetpipe_ros.diagnosis.score import predict_all, score
 from jetpipe_ros.model import ModelParams, load_params, simulate
 
 DT = 1e-3
@@ -204,6 +208,28 @@ def test_a_nominal_model_with_the_effect_on_has_nothing_left(tmp_path):
     assert result["nominal_effects"] == ["valve_lag"]
     assert "valve_lag" not in {r["effect"] for r in result["ranking"]}
     assert result["verdict"]["effect"] == "none" and result["gap"]["nominal"] < 0.5
+
+
+def test_a_member_switched_off_leaves_the_model_without_it(tmp_path):
+    """A pair's fit with one member switched off (the rest as fitted, nothing refitted)
+    predicts as the model without that member: on records of a 20 Hz valve lag, the lag
+    beside a leak at its typical size, the leak switched off, scores as the model with the lag
+    alone built another way; with the leak on, the pair misses far more."""
+    lagging = ModelParams().with_effect("valve_lag", corner_frequency=20.0)
+    make_dataset(tmp_path / "data", lagging)
+    prepared = prepare(read_dataset(tmp_path / "data"))
+    names = ("calibration", "valve_lag:first_order", "leakage:laminar")
+    groups = [group(g) for g in names]
+    leak = CANDIDATES["leakage:laminar"].typical
+    z = np.concatenate([CALIBRATION.start(), groups[1].to_unit({"corner_frequency": 20.0}),
+                        groups[2].to_unit(leak)])
+    pair = fit(prepared, ModelParams(), groups, z, budget=1)  # scored where it starts
+    off = switched_off(prepared, ModelParams(), pair, "leakage:laminar")
+    alone = score(prepared, predict_all(lagging, prepared, "holdout"), "holdout")
+    assert off.holdout.gap == pytest.approx(alone.gap, rel=1e-9)
+    assert off.values["leakage:laminar"] == {k: 0.0 for k in leak}
+    assert off.values["valve_lag:first_order"] == pair.values["valve_lag:first_order"]
+    assert pair.holdout.gap > off.holdout.gap + 0.5
 
 
 def test_the_separating_experiment_is_where_two_models_differ_most():

@@ -34,7 +34,8 @@ from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate, combinable, 
 from jetpipe_ros.diagnosis.collinearity import (imitated_effects, imitations, sensor_words,
                                                 with_added_sensors)
 from jetpipe_ros.diagnosis.data import Prepared, prepare, swapped
-from jetpipe_ros.diagnosis.fit import BUDGET, Fit, stacked, uncertainty, with_nuisance
+from jetpipe_ros.diagnosis.fit import (BUDGET, Fit, stacked, switched_off, uncertainty,
+                                      with_nuisance)
 from jetpipe_ros.diagnosis.jobs import IN_PROCESS, Fitter, Job, Workers, run_job
 from jetpipe_ros.diagnosis.localize import by_regime, frequency_response, position_error_pct
 from jetpipe_ros.diagnosis import nuisance, residuals
@@ -485,6 +486,11 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
             on_cal = [min([f, *(s for s in singles if s.name == f.name)],
                           key=lambda x: x.train.total) for f in on_cal] + pairs
             ranking = rank(on_cal, cal.holdout, cal.holdout_windows, dt)
+            progress("each pair with each member switched off, the rest as fitted")
+            for r in ranking:
+                if len(r.fit.effects) == 2:
+                    r.switched_off = {g: switched_off(prepared, nominal, r.fit, g)
+                                      for g in r.fit.effects}
         cross_check([cal_row, *ranking[:2], *alone_ranking[:2]], fitter, nominal, nom_all,
                     progress)
         on_cal_verdict, ranking = second_fold(

@@ -222,6 +222,18 @@ def with_nuisance(prepared: Prepared, nominal: ModelParams, fitted: Fit) -> Fit:
     return _scored(obj, _nuisance_fitted(obj, fitted.z), began)
 
 
+def switched_off(prepared: Prepared, nominal: ModelParams, fitted: Fit, name: str) -> Fit:
+    """``fitted`` (its groups applied to ``nominal``) with the group ``name`` back where it
+    changes nothing and every other knob as fitted, nothing refitted, scored again: what the
+    rest of the fit predicts without that group."""
+    began = time.perf_counter()
+    groups = [group(g, prepared.sensors) for g in fitted.groups]
+    obj = _Objective(prepared, nominal, groups, budget=0)
+    z = fitted.knobs_by_group()
+    z[name] = group(name, prepared.sensors).rest(fitted.values[name])
+    return _scored(obj, np.concatenate([z[g] for g in fitted.groups]), began)
+
+
 def _scored(obj: _Objective, z: np.ndarray, began: float) -> Fit:
     """The fit at the unit-scaled knobs ``z``, scored on the training and held-out data."""
     prepared = obj.prepared

@@ -37,14 +37,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
 
 from jetpipe_ros.diagnosis.calibration import NAME as CALIBRATION
 from jetpipe_ros.diagnosis.calibration import describe
-from jetpipe_ros.diagnosis.candidates import CANDIDATES
+from jetpipe_ros.diagnosis.candidates import CANDIDATES, effect_of
 from jetpipe_ros.diagnosis.fit import Fit
 from jetpipe_ros.diagnosis.score import Score, effective_samples
 from jetpipe_ros.model import EFFECTS
@@ -81,6 +81,9 @@ class Ranked:
     #: held-out gap of its second fold (fitted on the holdout, judged on the training data) [%],
     #: if run (:func:`jetpipe_ros.diagnosis.diagnose.second_fold`)
     second_fold: float | None = None
+    #: a pair's fit with each member back where it changes nothing, every other knob as
+    #: fitted (:func:`jetpipe_ros.diagnosis.fit.switched_off`), by member; empty if not scored
+    switched_off: dict[str, Fit] = field(default_factory=dict)
 
     @property
     def significant(self) -> bool:
@@ -115,7 +118,10 @@ class Ranked:
                 "t_cross_check": self.t_cross, "second_fold_gap": self.second_fold,
                 "removed_over_noise_floor": self.removed_over_floor,
                 "holdout_by_signal": self.fit.holdout.to_json(), "bic": self.bic,
-                "evaluations": self.fit.evaluations, "fit_seconds": self.fit.seconds}
+                "evaluations": self.fit.evaluations, "fit_seconds": self.fit.seconds,
+                **({"switched_off_gap": {effect_of(g): f.holdout.gap
+                                         for g, f in self.switched_off.items()}}
+                   if self.switched_off else {})}
 
 
 def paired_t(before: np.ndarray, after: np.ndarray) -> float:
@@ -204,29 +210,57 @@ def pinned_single(single: Ranked) -> list[str]:
     return [f"{g}.{k}" for k in CANDIDATES[g].pinned(single.fit.values[g])]
 
 
+def idle_second(pair: Ranked, ranking: Sequence[Ranked],
+                floor_windows: np.ndarray | None) -> list[str]:
+    """The pair's second effect (the member beside its better single one) when the pair does
+    not pay for it against itself with that member switched off (:attr:`Ranked.switched_off`:
+    every other knob as fitted, nothing refitted), by the rule of :func:`pair_pays`.
+
+    A member that carries the pair's held-out improvement loses it when switched off. One that
+    does not only moved the other knobs in training, soaking up there what the first effect's
+    form misses; the improvement held out is the other knobs' new values, not the member's.
+    Seen with one chamber pressure on a wall heat exchange whose conductance grows with the
+    wetted wall, three seeds of three (6563, 2477, 2203): the heat alone left 0.67-0.76 % held
+    out; beside a supply 1.4 kPa low, a leak of 2e-6 kg/s or a pressure sensor's 0.3 % gain
+    error, 0.45-0.51 %; each pair with its second member switched off, 0.41-0.48 %."""
+    best = _better_single(pair, ranking)
+    first = best.fit.effects if best is not None else ()
+    return [g for g in pair.fit.effects if g not in first and g in pair.switched_off
+            and not _pays(pair.fit, pair.switched_off[g], floor_windows)]
+
+
+def _pays(fitted: Fit, against: Fit, floor_windows: np.ndarray | None) -> bool:
+    """``fitted`` removes at least :data:`MIN_SHRINKAGE` of the held-out gap ``against``
+    leaves (:data:`MOSTLY` when ``fitted`` still leaves a gap beyond noise), significantly
+    (paired t >= :data:`MIN_T` over the windows, or more than the whole noise floor)."""
+    left = against.holdout
+    shrink = 1.0 - fitted.holdout.gap / left.gap if left.gap > 0 else 0.0
+    t = paired_t(against.holdout_windows, fitted.holdout_windows)
+    removed = (left.total - fitted.holdout.total) / max(left.noise_total, 1e-300)
+    enough = MOSTLY if left_beyond_noise(fitted.holdout, fitted.holdout_windows,
+                                         floor_windows) else MIN_SHRINKAGE
+    return shrink >= enough and (t >= MIN_T or removed >= 1.0)
+
+
 def pair_pays(pair: Ranked, ranking: Sequence[Ranked],
               floor_windows: np.ndarray | None) -> bool:
     """A pair is named only when its second effect pays for itself on held-out data: the pair
     removes at least :data:`MIN_SHRINKAGE` of what its better single member leaves, and that
     improvement is significant (paired t >= :data:`MIN_T` over the windows, or more than the
     whole noise floor), with the second effect's knobs inside their search ranges
-    (:func:`pinned_second`). When the pair still leaves a gap beyond noise, the second effect
-    must remove :data:`MOSTLY` of what the first leaves, the rule a single effect meets against
-    its base: one that leaves more of the rest than it removes is at most part of the rest's
-    cause, and the single effect is named with the gap it leaves (seen on the plant's supply
-    behind a drooping regulator, four seeds of four: a sensor lag or a leak beside the supply
-    took 32-34 % of what the supply left, and 1.5-5.4 % beyond noise remained)."""
+    (:func:`pinned_second`), and the same improvement over the pair with its second effect
+    switched off (:func:`idle_second`). When the pair still leaves a gap beyond noise, the
+    second effect must remove :data:`MOSTLY` of what the first leaves, the rule a single effect
+    meets against its base: one that leaves more of the rest than it removes is at most part of
+    the rest's cause, and the single effect is named with the gap it leaves (seen on the
+    plant's supply behind a drooping regulator, four seeds of four: a sensor lag or a leak
+    beside the supply took 32-34 % of what the supply left, and 1.5-5.4 % beyond noise
+    remained)."""
     best = _better_single(pair, ranking)
     if best is None:
         return True
-    left = best.fit.holdout
-    shrink = 1.0 - pair.fit.holdout.gap / left.gap if left.gap > 0 else 0.0
-    t = paired_t(best.fit.holdout_windows, pair.fit.holdout_windows)
-    removed = (left.total - pair.fit.holdout.total) / max(left.noise_total, 1e-300)
-    enough = MOSTLY if left_beyond_noise(pair.fit.holdout, pair.fit.holdout_windows,
-                                         floor_windows) else MIN_SHRINKAGE
-    return (shrink >= enough and (t >= MIN_T or removed >= 1.0)
-            and not pinned_second(pair, ranking))
+    return (_pays(pair.fit, best.fit, floor_windows) and not pinned_second(pair, ranking)
+            and not idle_second(pair, ranking, floor_windows))
 
 
 @dataclass
@@ -309,15 +343,22 @@ def decide(ranking: Sequence[Ranked], base: Score, base_windows: np.ndarray,
     if base.gap < NOISE_GAP:
         reason += (f", a small gap (under the {NOISE_GAP} % at which it shows in a plot of the "
                    f"records) but beyond noise")
-    compensating = [(r, pinned) for r in ranking if len(r.fit.effects) > len(win.fit.effects)
-                    and set(win.fit.effects) <= set(r.fit.effects) and r.explains
-                    and r.fit.holdout.gap < win.fit.holdout.gap
-                    and (pinned := pinned_second(r, ranking))]
+    beside = [r for r in ranking if len(r.fit.effects) > len(win.fit.effects)
+              and set(win.fit.effects) <= set(r.fit.effects) and r.explains
+              and r.fit.holdout.gap < win.fit.holdout.gap]
+    compensating = [(r, pinned) for r in beside if (pinned := pinned_second(r, ranking))]
     if compensating:
         r, pinned = compensating[0]
         reason += (f"; {r.fit.name} leaves less ({r.fit.holdout.gap:.2f} %), but with "
                    f"{', '.join(pinned)} at the edge of its range: taken as compensating what "
                    f"the form of {win.fit.name} misses, not named")
+    idle = [(r, off) for r in beside if (off := idle_second(r, ranking, floor_windows))]
+    if idle and not compensating:
+        r, (off, *_) = idle[0]
+        reason += (f"; {r.fit.name} leaves less ({r.fit.holdout.gap:.2f} %), but with {off} "
+                   f"switched off, the rest as fitted, it leaves "
+                   f"{r.switched_off[off].holdout.gap:.2f} %: {off} does not carry the "
+                   f"improvement, not named")
     if stand_in is not None and ranking.index(stand_in) < ranking.index(win):
         reason += (f"; {stand_in.fit.name} leaves less ({stand_in.fit.holdout.gap:.2f} %), but "
                    f"with {', '.join(pinned_single(stand_in))} at the edge of its search "
