@@ -352,8 +352,11 @@ def decide(ranking: Sequence[Ranked], base: Score, base_windows: np.ndarray,
         reason += (f"; {r.fit.name} leaves less ({r.fit.holdout.gap:.2f} %), but with "
                    f"{', '.join(pinned)} at the edge of its range: taken as compensating what "
                    f"the form of {win.fit.name} misses, not named")
-    idle = [(r, off) for r in beside if (off := idle_second(r, ranking, floor_windows))]
-    if idle and not compensating:
+    # Said only where it decided: the pair would be named but for its idle second effect.
+    idle = [(r, off) for r in beside if (off := idle_second(r, ranking, floor_windows))
+            and (first := _better_single(r, ranking)) is not None
+            and _pays(r.fit, first.fit, floor_windows) and not pinned_second(r, ranking)]
+    if idle:
         r, (off, *_) = idle[0]
         reason += (f"; {r.fit.name} leaves less ({r.fit.holdout.gap:.2f} %), but with {off} "
                    f"switched off, the rest as fitted, it leaves "
