@@ -9,7 +9,8 @@ which candidates the experiments could show at all; recalibrate the nominal para
 imitate on these records, and which pressure sensor the rig lacks would tell them apart
 (:mod:`collinearity`); fit every candidate alone and on top of the
 recalibrated model, refit the most promising jointly with the calibration, and score everything
-on the held-out data; try pairs when one effect leaves a significant gap; cross-check, with the
+on the held-out data; try pairs when one effect leaves a significant gap, and score each pair
+again with each member switched off (:func:`fit.switched_off`); cross-check, with the
 roles of the data exchanged, what the short holdout cannot confirm alone; decide which of
 calibration and effect the data need (:func:`verdict.settle`); when no candidate explains the
 gap, place where it starts by experiments on the records (:mod:`placement`). The result is
