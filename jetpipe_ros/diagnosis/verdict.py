@@ -256,11 +256,18 @@ def pair_pays(pair: Ranked, ranking: Sequence[Ranked],
     plant's supply behind a drooping regulator, four seeds of four: a sensor lag or a leak
     beside the supply took 32-34 % of what the supply left, and 1.5-5.4 % beyond noise
     remained)."""
-    best = _better_single(pair, ranking)
-    if best is None:
+    if _better_single(pair, ranking) is None:
         return True
-    return (_pays(pair.fit, best.fit, floor_windows) and not pinned_second(pair, ranking)
+    return (_gains_over_first(pair, ranking, floor_windows) and not pinned_second(pair, ranking)
             and not idle_second(pair, ranking, floor_windows))
+
+
+def _gains_over_first(pair: Ranked, ranking: Sequence[Ranked],
+                      floor_windows: np.ndarray | None) -> bool:
+    """The pair pays (:func:`_pays`) against its better single member refitted alone (False
+    when neither member was fitted alone)."""
+    best = _better_single(pair, ranking)
+    return best is not None and _pays(pair.fit, best.fit, floor_windows)
 
 
 @dataclass
@@ -354,8 +361,7 @@ def decide(ranking: Sequence[Ranked], base: Score, base_windows: np.ndarray,
                    f"the form of {win.fit.name} misses, not named")
     # Said only where it decided: the pair would be named but for its idle second effect.
     idle = [(r, off) for r in beside if (off := idle_second(r, ranking, floor_windows))
-            and (first := _better_single(r, ranking)) is not None
-            and _pays(r.fit, first.fit, floor_windows) and not pinned_second(r, ranking)]
+            and _gains_over_first(r, ranking, floor_windows) and not pinned_second(r, ranking)]
     if idle:
         r, (off, *_) = idle[0]
         reason += (f"; {r.fit.name} leaves less ({r.fit.holdout.gap:.2f} %), but with {off} "
