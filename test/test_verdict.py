@@ -10,7 +10,7 @@ from jetpipe_ros.diagnosis.calibration import CALIBRATION
 from jetpipe_ros.diagnosis.candidates import CANDIDATES
 from jetpipe_ros.diagnosis.fit import Fit
 from jetpipe_ros.diagnosis.score import Score
-from jetpipe_ros.diagnosis.verdict import decide, paired_t, rank, settle
+from jetpipe_ros.diagnosis.verdict import decide, left_out, paired_t, rank, settle
 from jetpipe_ros.model import ModelParams
 
 FLOOR = 1e-4
@@ -127,14 +127,16 @@ def test_a_second_effect_switched_off_must_lose_what_the_pair_gains(rng):
     (it moved the heat and the knobs in training), so the heat is named alone and the reason
     says why the pair is not. Switched off, a supply that does the work leaves what the heat
     leaves or more (0.80 %): the pair is named. A pair that gains too little over the heat
-    anyway (0.60 %) is not named, and the reason does not blame the switched-off test."""
+    anyway (0.60 %) is not named, and the reason does not blame the switched-off test. Each
+    pair's ranking row says which rule left it out (:func:`left_out`), or nothing when named."""
     level = lambda g: FLOOR + (g / 100) ** 2  # noqa: E731
     nom = windows(level(5.4), rng)
     single = fit("calibration+thermal:heat_transfer", 0.67, windows(level(0.67), rng))
     heat = "thermal:heat_transfer"
-    for pair_gap, off_gap, named, said in ((0.45, 0.41, heat, True),
-                                           (0.45, 0.80, f"{heat}+supply_pressure", False),
-                                           (0.60, 0.55, heat, False)):
+    for pair_gap, off_gap, named, said, why in (
+            (0.45, 0.41, heat, True, "supply_pressure switched off leaves as little"),
+            (0.45, 0.80, f"{heat}+supply_pressure", False, None),
+            (0.60, 0.55, heat, False, f"gains too little over {heat} alone")):
         pair = fit(f"calibration+{heat}+supply_pressure", pair_gap,
                    windows(level(pair_gap), rng))
         ranking = rank([single, pair], score(5.4), nom, 1e-3)
@@ -145,6 +147,7 @@ def test_a_second_effect_switched_off_must_lose_what_the_pair_gains(rng):
         v = decide(ranking, score(5.4), nom, None)
         assert v.winner.fit.name == named, (pair_gap, off_gap)
         assert ("supply_pressure does not carry the improvement" in v.reason) == said
+        assert left_out(row, ranking, None) == why
         assert row.to_json(score(5.4))["switched_off_gap"] == {
             "supply_pressure": pytest.approx(off_gap)}
 
@@ -283,9 +286,13 @@ def test_a_second_effect_pinned_at_the_edge_of_its_range_is_not_named(rng):
     area = CANDIDATES["leakage:orifice"].knobs[1]
     pinned = fit("supply_pressure+leakage:orifice", 0.4, windows(FLOOR + 1.6e-5, rng),
                  **{"leakage:orifice": {area.name: area.high}})
-    v = decide(rank([single, pinned], score(2.0), nom, 1e-3), score(2.0), nom, None)
+    ranking = rank([single, pinned], score(2.0), nom, 1e-3)
+    v = decide(ranking, score(2.0), nom, None)
     assert v.winner.fit.name == "supply_pressure"
     assert "leakage:orifice.atmosphere_area at the edge of its range" in v.reason
+    assert left_out(next(r for r in ranking if r.fit is pinned),
+                    ranking, None) == ("leakage:orifice.atmosphere_area at the edge of its "
+                                       "search range")
     # Inside its range, or at the edge where the effect vanishes, the second effect is named.
     for value in (0.5 * area.high, area.off):
         inside = fit("supply_pressure+leakage:orifice", 0.4, windows(FLOOR + 1.6e-5, rng),
@@ -309,9 +316,12 @@ def test_a_single_effect_pinned_at_the_edge_of_its_range_is_not_named(rng):
 
     bound = CANDIDATES["valve_delay"].knobs[0].high
     lag = fit("valve_lag:second_order", 1.16, windows(FLOOR + 1.16e-2 ** 2, rng))
-    v = decide(rank([delay(bound, 0.58), lag], score(2.0), nom, 1e-3), score(2.0), nom, None)
+    ranking = rank([delay(bound, 0.58), lag], score(2.0), nom, 1e-3)
+    v = decide(ranking, score(2.0), nom, None)
     assert v.winner is None and v.unexplained
     assert "valve_delay.delay at the edge of its search range" in v.reason
+    assert [left_out(r, ranking, None) for r in ranking] == [
+        "valve_delay.delay at the edge of its search range", None]
     v = decide(rank([delay(0.5 * bound, 0.58), lag], score(2.0), nom, 1e-3), score(2.0), nom,
                None)
     assert v.winner.fit.name == "valve_delay"

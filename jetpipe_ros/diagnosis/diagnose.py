@@ -48,7 +48,7 @@ from jetpipe_ros.diagnosis.prediction import HORIZON, persistence
 from jetpipe_ros.diagnosis.score import (METRIC, Score, difference_gap, effective_samples,
                                          predict_all, score, window_errors)
 from jetpipe_ros.diagnosis.verdict import (NOISE_GAP, Ranked, Settled, Verdict, decide,
-                                           needs_pairs, paired_t, rank, settle)
+                                           left_out, needs_pairs, paired_t, rank, settle)
 from jetpipe_ros.model import EFFECTS, ModelParams
 from jetpipe_ros.model.flow import P_ATM
 
@@ -759,6 +759,7 @@ def _result(prepared: Prepared, nominal: ModelParams, settled: Settled,
     rows = []
     for r in ranking:
         row = r.to_json(cal.holdout)
+        row["left_out"] = left_out(r, ranking, prepared.floor_windows)
         a = alone_rows.get(r.fit.name)
         row["alone"] = a.to_json(nom_hold) if a is not None else None
         rows.append(row)

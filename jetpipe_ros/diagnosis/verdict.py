@@ -14,7 +14,7 @@ by a Bayesian information criterion over the held-out error with one sample per 
 window, so an extra parameter must pay for itself; a pair must also remove :data:`MIN_SHRINKAGE`
 of what its better member leaves (:data:`MOSTLY` when the pair still leaves a gap beyond noise),
 with significance, and its second effect must not sit at the edge of its search range
-(:func:`pair_pays`), or the single effect is preferred. A single effect
+(:func:`left_out`), or the single effect is preferred. A single effect
 whose knob sits at the far edge of its search range is not named either (:func:`pinned_single`):
 fitted there it measures nothing, it stands in for a cause outside its form.
 
@@ -214,7 +214,7 @@ def idle_second(pair: Ranked, ranking: Sequence[Ranked],
                 floor_windows: np.ndarray | None) -> list[str]:
     """The pair's second effect (the member beside its better single one) when the pair does
     not pay for it against itself with that member switched off (:attr:`Ranked.switched_off`:
-    every other knob as fitted, nothing refitted), by the rule of :func:`pair_pays`.
+    every other knob as fitted, nothing refitted), by the rule of :func:`left_out`.
 
     A member that carries the pair's held-out improvement loses it when switched off. One that
     does not only moved the other knobs in training, soaking up there what the first effect's
@@ -242,24 +242,39 @@ def _pays(fitted: Fit, against: Fit, floor_windows: np.ndarray | None) -> bool:
     return shrink >= enough and (t >= MIN_T or removed >= 1.0)
 
 
-def pair_pays(pair: Ranked, ranking: Sequence[Ranked],
-              floor_windows: np.ndarray | None) -> bool:
-    """A pair is named only when its second effect pays for itself on held-out data: the pair
-    removes at least :data:`MIN_SHRINKAGE` of what its better single member leaves, and that
-    improvement is significant (paired t >= :data:`MIN_T` over the windows, or more than the
-    whole noise floor), with the second effect's knobs inside their search ranges
-    (:func:`pinned_second`), and the same improvement over the pair with its second effect
-    switched off (:func:`idle_second`). When the pair still leaves a gap beyond noise, the
-    second effect must remove :data:`MOSTLY` of what the first leaves, the rule a single effect
-    meets against its base: one that leaves more of the rest than it removes is at most part of
-    the rest's cause, and the single effect is named with the gap it leaves (seen on the
-    plant's supply behind a drooping regulator, four seeds of four: a sensor lag or a leak
-    beside the supply took 32-34 % of what the supply left, and 1.5-5.4 % beyond noise
-    remained)."""
-    if _better_single(pair, ranking) is None:
-        return True
-    return (_gains_over_first(pair, ranking, floor_windows) and not pinned_second(pair, ranking)
-            and not idle_second(pair, ranking, floor_windows))
+def left_out(r: Ranked, ranking: Sequence[Ranked], floor_windows: np.ndarray | None
+             ) -> str | None:
+    """Why a candidate that explains the gap (:attr:`Ranked.explains`) is not named all the
+    same, in a few words, or None when no rule leaves it out.
+
+    A single effect is left out with a knob at the far edge of its search range
+    (:func:`pinned_single`). A pair is named only when its second effect pays for itself on
+    held-out data: the pair removes at least :data:`MIN_SHRINKAGE` of what its better single
+    member leaves, and that improvement is significant (paired t >= :data:`MIN_T` over the
+    windows, or more than the whole noise floor), with the second effect's knobs inside their
+    search ranges (:func:`pinned_second`), and the same improvement over the pair with its
+    second effect switched off (:func:`idle_second`). When the pair still leaves a gap beyond
+    noise, the second effect must remove :data:`MOSTLY` of what the first leaves, the rule a
+    single effect meets against its base: one that leaves more of the rest than it removes is
+    at most part of the rest's cause, and the single effect is named with the gap it leaves
+    (seen on the plant's supply behind a drooping regulator, four seeds of four: a sensor lag
+    or a leak beside the supply took 32-34 % of what the supply left, and 1.5-5.4 % beyond
+    noise remained). A pair neither of whose members was fitted alone is not judged so."""
+    if not r.explains:
+        return None
+    if len(r.fit.effects) == 1:
+        pinned = pinned_single(r)
+        return f"{', '.join(pinned)} at the edge of its search range" if pinned else None
+    best = _better_single(r, ranking)
+    if best is None:
+        return None
+    if not _gains_over_first(r, ranking, floor_windows):
+        return f"gains too little over {best.fit.name} alone"
+    if pinned := pinned_second(r, ranking):
+        return f"{', '.join(pinned)} at the edge of its search range"
+    if idle := idle_second(r, ranking, floor_windows):
+        return f"{', '.join(idle)} switched off leaves as little"
+    return None
 
 
 def _gains_over_first(pair: Ranked, ranking: Sequence[Ranked],
@@ -305,9 +320,7 @@ def decide(ranking: Sequence[Ranked], base: Score, base_windows: np.ndarray,
     best_shrink = max((_clip(r.shrinkage) * (1.0 if r.significant else
                                              _clip(max(r.t / MIN_T, r.removed_over_floor)))
                        for r in ranking), default=0.0)
-    explaining = [r for r in ranking if r.explains and
-                  (not pinned_single(r) if len(r.fit.effects) == 1
-                   else pair_pays(r, ranking, floor_windows))]
+    explaining = [r for r in ranking if r.explains and left_out(r, ranking, floor_windows) is None]
     stand_in = next((r for r in ranking if r.explains and pinned_single(r)), None)
     gap_left = left_beyond_noise(base, base_windows, floor_windows)
     named = [r for r in explaining if r.shrinkage >= MOSTLY or not left_beyond_noise(

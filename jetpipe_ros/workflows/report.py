@@ -27,28 +27,47 @@ from jetpipe_ros.figures import png_img, pyplot
 COLORS = {"data": "#444444", "nominal": "#d62728", "augmented": "#1f77b4"}
 
 
+#: The ranking chart's bars: the verdict's candidate, others that explain the gap, those that
+#: explain it but a rule leaves out (:func:`jetpipe_ros.diagnosis.verdict.left_out`; hatched),
+#: and those that do not explain it.
+RANK_COLORS = {"named": "#1f77b4", "explains": "#9ecae1", "left out": "#9ecae1", "no": "#cccccc"}
+
+
 def ranking_figure(result: dict) -> str:
     """Held-out gap of each candidate on the recalibrated model (bars, best first) against the
     nominal and the recalibrated model's."""
     plt = pyplot()
+    from matplotlib.patches import Patch  # after pyplot(): matplotlib is imported on first use
     rows = result["ranking"]
     names = [r["candidate"] for r in rows]
     gaps = [r["holdout_gap"] for r in rows]
     fig, ax = plt.subplots(figsize=(8, 0.35 * len(rows) + 1.2))
-    colors = ["#1f77b4" if r["candidate"] == result["verdict"]["candidate"] else
-              ("#9ecae1" if r["explains"] else "#cccccc") for r in rows]
-    ax.barh(names[::-1], gaps[::-1], color=colors[::-1])
-    ax.axvline(result["gap"]["nominal"], color=COLORS["nominal"], ls="--",
-               label=f"nominal {result['gap']['nominal']:.2f} %")
-    ax.axvline(result["gap"]["recalibrated"], color="#888888", ls=":",
-               label=f"recalibrated {result['gap']['recalibrated']:.2f} %")
+    kinds = ["named" if r["candidate"] == result["verdict"]["candidate"] else
+             "left out" if r.get("left_out") else "explains" if r["explains"] else "no"
+             for r in rows]
+    colors = [RANK_COLORS[k] for k in kinds]
+    bars = ax.barh(names[::-1], gaps[::-1], color=colors[::-1])
+    for bar, kind in zip(bars, kinds[::-1]):
+        if kind == "left out":  # explains, but a rule leaves it out: the verdict says why
+            bar.set_hatch("///")
+            bar.set_edgecolor("#ffffff")
+    handles = [Patch(facecolor=RANK_COLORS[kind], edgecolor="#ffffff", label=text,
+                     hatch="///" if kind == "left out" else None)
+               for kind, text in (("named", "named"), ("explains", "explains"),
+                                  ("left out", "explains, left out by a rule"),
+                                  ("no", "does not explain")) if kind in kinds]
+    handles.append(ax.axvline(result["gap"]["nominal"], color=COLORS["nominal"], ls="--",
+                              label=f"nominal {result['gap']['nominal']:.2f} %"))
+    handles.append(ax.axvline(result["gap"]["recalibrated"], color="#888888", ls=":",
+                              label=f"recalibrated {result['gap']['recalibrated']:.2f} %"))
     for i, r in enumerate(rows[::-1]):
         ax.text(r["holdout_gap"], i, f"  {100 * r['shrinkage']:.0f} %", va="center", fontsize=8)
     ax.set_xlim(0.0, 1.12 * max(gaps + [result["gap"]["nominal"], 0.01]))  # room for labels
     ax.set_xlabel("held-out gap, excess NRMSE [%] (labels: shrinkage of what recalibration "
                   "leaves)")
     # Above the bars: inside, it covered the shrinkage labels of the last ones.
-    ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=2, fontsize=8, frameon=False)
+    ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=3,
+              fontsize=8, frameon=False)
     return png_img(fig)
 
 
@@ -511,7 +530,8 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
     rank_rows = [[_breakable(r["candidate"]), r["subsystem"], r["train_gap"], r["holdout_gap"],
                   *([r.get("second_fold_gap")] if folds else []),
                   f"{100 * r['shrinkage']:.0f} %", r["t"], r["t_cross_check"],
-                  "yes" if r["explains"] else "no",
+                  ("yes, left out: " + r["left_out"] if r.get("left_out") else
+                   "yes" if r["explains"] else "no"),
                   f"{100 * r['alone']['shrinkage']:.0f} %" if r["alone"] else None,
                   _params_cell(r["params"])]
                  for r in result["ranking"]]
