@@ -283,22 +283,41 @@ def test_an_unmeasured_pressure_does_not_raise_the_noise_floor(nominal_record, t
         assert floor[s] == pytest.approx(clean[s], rel=0.3), s
 
 
+@pytest.mark.parametrize("declared", [True, False])
 def test_the_frequency_response_of_the_position_alone_leaves_the_closed_loop_out(
-        nominal_record, tmp_path):
+        nominal_record, tmp_path, declared):
     """Command to position, on records of the model itself without pressure sensors: the
     model's 20-70 Hz gain and phase match the data's. The closed-loop records are left out:
     there the command follows the position sensor's noise through the 300 V/m controller, and
     above about 45 Hz their spectra's ratio was its inverse, 3.3 mm/V at -180 deg, against
     which the model that generated the records missed by 34 % in gain and 17 deg (measured
-    on the default campaign; 4 % and 1.5 deg without them)."""
+    on the default campaign; 4 % and 1.5 deg without them). A logger that does not declare
+    which records were closed loop (no ``kind`` in dataset.yaml) loses nothing: the records
+    whose command follows the position's noise are found (all of the command's fast part is
+    the controller's there, under 1 % in the open-loop ones), and said."""
+    from jetpipe_ros.diagnosis.data import feedback_share
     from jetpipe_ros.diagnosis.localize import frequency_response
     from jetpipe_ros.diagnosis.score import predict_all
 
     root = tmp_path / "data"
     shutil.copytree(nominal_record, root)
     relog(root, drop=("p1", "p2"))
+    doc = yaml.safe_load((root / "dataset.yaml").read_text())
+    closed = {e["file"] for e in doc["experiments"] if e.get("kind") == "closed_loop"}
+    assert closed == {"stick_slip.csv", "stick_slip_holdout.csv"}
+    if not declared:
+        for e in doc["experiments"]:
+            e.pop("kind", None)
+        (root / "dataset.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
     prepared = prepare(read_dataset(root))
-    assert any(r.closed_loop for r in prepared.records)
+    assert {r.entry.file for r in prepared.records if r.closed_loop} == closed
+    assert {r.entry.file for r in prepared.records if r.feedback} == (set() if declared
+                                                                      else closed)
+    shares = {r.entry.file: feedback_share(r, prepared.dt) for r in prepared.records}
+    assert all(shares[f] > 0.99 for f in closed)
+    assert all(x < 0.01 for f, x in shares.items() if f not in closed)
+    said = [n for n in prepared.notes if "does not declare (kind: closed_loop)" in n]
+    assert len(said) == (0 if declared else 2)
     fr = frequency_response(prepared, {"nominal": predict_all(ModelParams(), prepared, None)},
                             "y")
     high = fr["bands"]["20-70 Hz"]["nominal"]

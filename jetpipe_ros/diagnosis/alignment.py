@@ -62,7 +62,7 @@ import numpy as np
 
 from jetpipe_ros.diagnosis.calibration import CALIBRATION, Calibration
 from jetpipe_ros.diagnosis.candidates import Knob, KnobGroup
-from jetpipe_ros.diagnosis.data import Prepared, smoothed
+from jetpipe_ros.diagnosis.data import Prepared
 from jetpipe_ros.diagnosis.fit import Fit, fit, uncertainty
 from jetpipe_ros.model import ModelParams
 
@@ -143,8 +143,7 @@ def controller_reaction(prepared: Prepared) -> tuple[int | None, float]:
     for rec in records:
         if not rec.measured("y") or np.std(rec.u) < 1e-9 or rec.t.size <= 2 * width:
             continue
-        eu = rec.u - smoothed(rec.u, prepared.dt)
-        ey = rec.y - rec.smooth["y"]
+        eu, ey = rec.high_frequency(prepared.dt)
         ok = rec.train | rec.holdout
         k = np.arange(max(LAGS), rec.t.size + min(LAGS))  # rows with every lag inside
         cols = np.column_stack([ey[k - lag] for lag in LAGS])
