@@ -23,6 +23,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 from std_srvs.srv import Trigger
 
 from jetpipe_ros.fileio import load_yaml
+from jetpipe_ros.model import ModelParams
 
 NS = "/twin1"
 STARTUP = 30.0  # [s] the first numba compile of the kernel takes seconds
@@ -232,3 +233,64 @@ def test_unreadable_model_file_is_a_startup_error_naming_it(launch):
     assert mon.popen.wait(STARTUP) == 2
     assert "parameter model_file: no/such/model.yaml: cannot read" in mon.output
     assert "not started" in mon.output
+
+
+def test_a_rig_without_pressure_sensors_is_followed_sample_by_sample(launch, ros_context):
+    """``pressure_sensors: none``: a sample is whole with its command and position, so each is
+    given to the twin at once (a monitor waiting for the pressures would have held every sample
+    until 2,000 were pending, and counted each without a measurement); the chambers are
+    simulated and the twin predicts the position of every sample but the first."""
+    from jetpipe_ros.nodes import interface
+    from twin_data import hardware
+
+    ns = "/twin2"
+    mon = launch(["-m", "jetpipe_ros.nodes.gap_monitor", "--ros-args", "-r", f"__ns:={ns}",
+                  "-p", "pressure_sensors:=none", "-p", "diagnostic_period:=0.2"])
+    mon.wait_for("started:", STARTUP)
+    assert "sensors y, horizon" in mon.output
+    probe = Probe(ros_context, namespace=ns)
+    statuses: list[DiagnosticStatus] = []
+    probe.node.create_subscription(
+        DiagnosticArray, "/diagnostics",
+        lambda m: statuses.extend(s for s in m.status if s.name == f"{ns}/gap_monitor: gap"),
+        100)
+    predicted: set[int] = set()
+    probe.node.create_subscription(JointState, "twin/joint_states",
+                                   lambda m: predicted.add(_ns(m.header.stamp)), DEEP)
+    try:
+        command = interface.publisher(probe.node, "voltage_applied")
+        position = interface.publisher(probe.node, "joint_states")
+        assert probe.spin_until(lambda: command.get_subscription_count() > 0
+                                and position.get_subscription_count() > 0, 20.0)
+        rows = hardware(ModelParams(), 0.5)
+        start = 1_000_000_000
+        for k, (t, u, f, y, _, _) in enumerate(rows):
+            stamp = start + round(t * 1e9)
+            sec, nanosec = divmod(stamp, 1_000_000_000)
+            a = JointState(name=["valve", "load"], position=[u, 0.0], effort=[0.0, f])
+            b = JointState(name=["piston"], position=[y])
+            for msg in (a, b):
+                msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
+            command.publish(a)
+            position.publish(b)
+            if k % 50 == 49:
+                probe.spin_for(0.02)
+
+        def counted():
+            return bool(statuses) and _values(statuses[-1])["samples"] == str(len(rows))
+        assert probe.spin_until(counted, 20.0), (statuses[-1:] and _values(statuses[-1]),
+                                                 mon.output)
+        values = _values(statuses[-1])
+        assert values["samples without a measurement"] == "0"
+        assert values["samples without command"] == "0"
+        assert probe.spin_until(lambda: len(predicted) >= 0.9 * (len(rows) - 1), 10.0), \
+            len(predicted)
+    finally:
+        probe.close()
+
+
+def test_an_unknown_pressure_sensor_set_is_a_startup_error(launch):
+    mon = launch(["-m", "jetpipe_ros.nodes.gap_monitor", "--ros-args", "-p",
+                  "pressure_sensors:=p3"])
+    assert mon.popen.wait(STARTUP) == 2
+    assert "parameter pressure_sensors must be one of" in mon.output

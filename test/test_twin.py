@@ -157,3 +157,30 @@ def test_capture_keeps_the_latest_samples_and_writes_them_as_a_dataset(tmp_path)
     # 8,999 rows with a command, 8,998 of them whole; the reader fills the one left out.
     assert [exp.t.size for _, exp in ds] == [3000, 2999, 3000]
     assert np.flatnonzero(~first.valid).tolist() == [100]
+
+
+def test_hardware_with_the_position_alone_is_followed_judged_and_captured(tmp_path):
+    """A rig without pressure sensors: the twin simulates both chambers, judges the position
+    alone, and flags a 20 Hz valve lag there from its second judgement on (ERROR, gaps
+    4.5-6.9 %, z 14-32; the same run with the pressures measured: the position's gaps alike,
+    its z 63-267, the pressures restarting the chambers). Its capture has the position as its
+    only sensor column and every row, where a capture that expected the pressures would have
+    none, and says so."""
+    from jetpipe_ros.dataset import DatasetError, read_dataset
+    from jetpipe_ros.twin.capture import write_capture
+
+    rows = hardware(ModelParams().with_effect("valve_lag", corner_frequency=20.0), 10.0)
+    rows[:, 4:6] = np.nan
+    levels = _levels(Twin(ModelParams()), rows)
+    for second in range(7, 11):
+        assert set(levels[second]) == {"y"}
+        level, gap, z = levels[second]["y"]
+        assert level == Level.ERROR and gap > 3.0 and z > 10.0, (second, gap, z)
+    write_capture(rows, tmp_path / "ds", sensors=("y",))
+    ds = read_dataset(tmp_path / "ds")
+    assert sum(exp.t.size for _, exp in ds) == rows.shape[0] - 1
+    assert all(exp.p1 is None and exp.p2 is None for _, exp in ds)
+    assert ds.experiments[0].y[:50] == pytest.approx(rows[:50, 3], rel=1e-8)
+    with pytest.raises(DatasetError, match=r"0 of the 10000 rows .* \(y, p1, p2\) finite"):
+        write_capture(rows, tmp_path / "expected_pressures")
+    assert not (tmp_path / "expected_pressures").exists()

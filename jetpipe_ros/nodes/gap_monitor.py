@@ -3,7 +3,8 @@
 Subscribes to an actuator's outputs (relative names, so ``-r __ns:=/axis1`` watches that axis):
 ``voltage_applied`` (the command [V] and load [N] applied over the sample ending at the stamp),
 ``joint_states`` (position [m]) and ``chamber1/pressure``, ``chamber2/pressure`` [Pa], all
-stamped; the messages of one stamp make a sample. Each sample goes through the twin
+stamped; the messages of one stamp make a sample. A rig without one or both pressure sensors
+says so (``pressure_sensors``): those chambers are simulated and their topics not subscribed. Each sample goes through the twin
 (:class:`jetpipe_ros.twin.Twin`: the model restarted from the measurements every ``horizon``),
 whose predictions are published at once, with the measurement's stamp, on
 ``twin/joint_states`` and ``twin/chamber1/pressure``, ``twin/chamber2/pressure``. Every
@@ -63,6 +64,9 @@ NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
               "config/actuator.yaml or a diagnosis' augmented.yaml"),
     ParamSpec("model_node", "actuator_sim", "Node name the model file's parameters are under"),
     ParamSpec("sample_time", 0.001, "Sample time of the measurements", "s", 1e-5, 1.0),
+    ParamSpec("pressure_sensors", "p1,p2", "The chamber pressures the hardware measures beside "
+              "the position (the others are simulated, not waited for, and no column of a "
+              "capture)", choices=("p1,p2", "p1", "p2", "none")),
     ParamSpec("horizon", 1.0, "Time between restarts of the model from the measurements", "s",
               0.02, 60.0),
     ParamSpec("warmup", 0.05, "Held start of each horizon (the valve sees the command)", "s",
@@ -96,7 +100,8 @@ WARN_PERIOD = 5.0  #: throttle of repeated warnings [s]
 #: The messages of a sample (bit of each in the mask).
 PARTS = {"voltage_applied": 1, "joint_states": 2, "chamber1/pressure": 4,
          "chamber2/pressure": 8}
-COMPLETE = 15
+#: The topic of each signal the hardware may measure (parameter ``sensors``).
+SENSOR_TOPICS = {"y": "joint_states", "p1": "chamber1/pressure", "p2": "chamber2/pressure"}
 #: Reader queue of each subscription [messages]: 1 s at 1 kHz, so that a slow callback (a
 #: horizon being scored, a capture being copied) loses nothing.
 QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
@@ -124,6 +129,10 @@ class GapMonitor(Node):
         except ValueError as exc:
             raise StartupError([f"parameters: {exc}"]) from None
         self.twin = Twin(params, settings)
+        pressures = self.opts["pressure_sensors"]
+        self._sensors = ("y", *(() if pressures == "none" else pressures.split(",")))
+        self._topics = ["voltage_applied", *(SENSOR_TOPICS[s] for s in self._sensors)]
+        self._complete = sum(PARTS[name] for name in self._topics)  # mask of a whole sample
         self.recent = Recent(self.opts["capture_seconds"], settings.dt)
         self._t0_ns: int | None = None
         self._last_ns = -1  # stamp of the latest sample given to the twin [ns]
@@ -140,7 +149,7 @@ class GapMonitor(Node):
         self._capture_thread: threading.Thread | None = None
         self._diagnosis: subprocess.Popen | None = None
         self._captures = 0
-        for name in PARTS:
+        for name in self._topics:
             msg_class = interface.topic(name).message_class()
             self.create_subscription(msg_class, name,
                                      lambda msg, name=name: self._guarded(name, msg), QOS)
@@ -157,7 +166,8 @@ class GapMonitor(Node):
         self._name = self.get_fully_qualified_name()
         model = self.opts["model_file"] or "the nominal model"
         self.get_logger().info(
-            f"started: model {model}, horizon {settings.horizon:g} s, window "
+            f"started: model {model}, sensors {', '.join(self._sensors)}, horizon "
+            f"{settings.horizon:g} s, window "
             f"{settings.window:g} s, capture {self.opts['capture_seconds']:g} s into "
             f"{self.opts['capture_dir']}")
 
@@ -212,7 +222,7 @@ class GapMonitor(Node):
         else:
             row[3 if name == "chamber1/pressure" else 4] = msg.fluid_pressure
         row[5] = int(row[5]) | PARTS[name]
-        if row[5] == COMPLETE:
+        if row[5] == self._complete:
             self._flush(stamp)
         elif len(self._pending) > PENDING:
             self._flush(next(iter(self._pending)))  # the oldest: stamps come in order
@@ -227,7 +237,7 @@ class GapMonitor(Node):
             if not math.isfinite(row[0]):
                 self._dropped += 1
                 continue
-            if row[5] != COMPLETE:
+            if row[5] != self._complete:
                 self._incomplete += 1
             self._sample(stamp, row)
 
@@ -368,7 +378,8 @@ class GapMonitor(Node):
         try:
             folder.mkdir(parents=True, exist_ok=False)
             write_capture(rows, dataset, note={"reason": reason, "monitor": self._name,
-                                               "stamp_origin_ns": self._t0_ns})
+                                               "stamp_origin_ns": self._t0_ns},
+                          sensors=self._sensors)
         except Exception as exc:  # noqa: BLE001 - reported, never raised into the node
             self._set_capture(level=Level.ERROR, message=f"capture failed: {exc}")
             self.get_logger().error(f"capture into {folder} failed: {exc}")

@@ -8,7 +8,9 @@ diagnosis judges by: every third piece held out, as the diagnosis itself chooses
 assigns none. A row of the dataset pairs the measurements at t_k with the command applied over
 the next sample, [t_k, t_k+1), so the received rows, which carry the command applied over the
 sample *ending* at their stamp, are shifted by one (the last one has no command yet and is left
-out); rows with a measurement missing are left out (the dataset reader fills such holes).
+out); rows with a measurement missing are left out (the dataset reader fills such holes). A
+chamber pressure the hardware does not measure (``sensors``) is no column of the capture, as the
+dataset contract has it for a bench without that sensor.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jetpipe_ros.dataset import Entry, write_dataset
+from jetpipe_ros.dataset import DatasetError, Entry, write_dataset
 
 #: Columns of a kept row: t [s], u [V] and load [N] applied over the sample ending at t,
 #: y [m], p1, p2 [Pa].
@@ -50,24 +52,41 @@ class Recent:
         return np.concatenate([self._rows[self._next:], self._rows[:self._next]])
 
 
-def dataset_rows(rows: np.ndarray) -> np.ndarray:
+#: The signals a capture may hold, as the twin has them (position, chamber pressures).
+SENSORS = ("y", "p1", "p2")
+
+
+def dataset_rows(rows: np.ndarray, sensors: tuple[str, ...] = SENSORS) -> np.ndarray:
     """Received rows (:data:`COLUMNS`) as dataset rows: each measurement with the command and
-    load applied over the next sample, the last row and rows with a non-finite value dropped."""
+    load applied over the next sample, the last row dropped, and the rows where the command,
+    the load or one of the ``sensors`` measured is not finite."""
     if rows.shape[0] < 2:
         return np.empty((0, len(COLUMNS)))
     out = rows[:-1].copy()
     out[:, 1:3] = rows[1:, 1:3]
-    return out[np.isfinite(out).all(axis=1)]
+    needed = [COLUMNS.index(c) for c in ("t", "u", "f_load", *sensors)]
+    return out[np.isfinite(out[:, needed]).all(axis=1)]
 
 
-def write_capture(rows: np.ndarray, root: str | Path, note: dict | None = None) -> Path:
+def write_capture(rows: np.ndarray, root: str | Path, note: dict | None = None,
+                  sensors: tuple[str, ...] = SENSORS) -> Path:
     """Write received rows (:data:`COLUMNS`) as a dataset directory ``root`` (new or empty);
-    every third piece of about :data:`PIECE` s is held out. ``note`` is stored with each
-    experiment in ``dataset.yaml``, with the rows received and those left out for a missing
-    value (``received_rows``, ``incomplete_rows``). Raises DatasetError when there is too
-    little to cut."""
-    data = dataset_rows(rows)
+    every third piece of about :data:`PIECE` s is held out; only the ``sensors`` the hardware
+    measures (of :data:`SENSORS`) are columns. ``note`` is stored with each experiment in
+    ``dataset.yaml``, with the rows received and those left out for a missing value
+    (``received_rows``, ``incomplete_rows``). Raises DatasetError when there is too little to
+    cut."""
+    unknown = [s for s in sensors if s not in SENSORS]
+    if unknown or "y" not in sensors:
+        raise ValueError(f"capture sensors {', '.join(sensors)}: the position y and any of "
+                         f"p1, p2")
+    data = dataset_rows(rows, sensors)
     n = data.shape[0]
+    if n < 2 or n * _dt(data) < PIECE:
+        raise DatasetError(f"{root}: {n} of the {rows.shape[0]} rows received have the command, "
+                           f"the load and every sensor ({', '.join(sensors)}) finite; a capture "
+                           f"needs {PIECE:g} s of them (a sensor the hardware lacks is not in "
+                           f"the monitor's 'pressure_sensors')")
     note = {**(note or {}), "received_rows": int(rows.shape[0]),
             "incomplete_rows": int(max(rows.shape[0] - 1 - n, 0))}
     pieces = max(int(n * _dt(data) / PIECE), 3)
@@ -80,7 +99,8 @@ def write_capture(rows: np.ndarray, root: str | Path, note: dict | None = None) 
                       extra={"captured_from_s": float(part[0, 0]) if part.size else math.nan,
                              **note})
         cols = {"t": part[:, 0] - part[0, 0] if part.size else part[:, 0],
-                "u": part[:, 1], "y": part[:, 3], "p1": part[:, 4], "p2": part[:, 5],
+                "u": part[:, 1], **{c: part[:, COLUMNS.index(c)] for c in SENSORS
+                                    if c in sensors},
                 "f_load": part[:, 2]}
         experiments.append((entry, cols))
     return write_dataset(root, experiments)
