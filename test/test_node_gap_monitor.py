@@ -285,6 +285,7 @@ def test_a_rig_without_pressure_sensors_is_followed_sample_by_sample(launch, ros
         values = _values(statuses[-1])
         assert values["samples without a measurement"] == "0"
         assert values["samples without command"] == "0"
+        assert values["stamp interval [ms]"] == "1"
         # The predictions go out best-effort, as sensor data: a loaded machine may lose some
         # on the way to this listener (12 % at four times its cores, the test above).
         assert probe.spin_until(lambda: len(predicted) >= 0.5 * (len(rows) - 1), 30.0), \

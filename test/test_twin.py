@@ -184,3 +184,27 @@ def test_hardware_with_the_position_alone_is_followed_judged_and_captured(tmp_pa
     with pytest.raises(DatasetError, match=r"0 of the 10000 rows .* \(y, p1, p2\) finite"):
         write_capture(rows, tmp_path / "expected_pressures")
     assert not (tmp_path / "expected_pressures").exists()
+
+
+def test_stamps_at_another_rate_than_the_sample_time_are_said():
+    """The median stamp interval is the hardware's sample time: a 500 Hz stream fed to a twin
+    set to 1 kHz is said (2 ms against 1 ms), and so is a 1.25 ms stream, which the rounding
+    of each interval to whole samples would run 25 % fast; a 1 kHz stream that lost 1 % of its
+    samples and whose stamps jitter by +-0.3 of a sample is not (its median within 2 %)."""
+    rows = hardware(ModelParams(), 2.0)
+    slow = Twin(ModelParams())
+    slow.feed(*rows[::2].T)
+    assert slow.interval() == pytest.approx(2e-3)
+    assert "every 2 ms, but sample_time is 1 ms: set it to the hardware's, 0.002 s" in \
+        slow.rate_mismatch()
+    odd = Twin(ModelParams())
+    odd.feed(rows[:, 0] * 1.25, *rows[:, 1:].T)
+    assert odd.interval() == pytest.approx(1.25e-3) and "every 1.25 ms" in odd.rate_mismatch()
+    rng = np.random.default_rng(3)
+    kept = np.sort(rng.choice(rows.shape[0], int(0.99 * rows.shape[0]), replace=False))
+    lossy = rows[kept].copy()
+    lossy[:, 0] += rng.uniform(-0.3e-3, 0.3e-3, kept.size)
+    jittered = Twin(ModelParams())
+    jittered.feed(*lossy.T)
+    assert jittered.interval() == pytest.approx(1e-3, rel=0.02)
+    assert jittered.rate_mismatch() is None

@@ -311,6 +311,9 @@ class GapMonitor(Node):
                        "handling failures": str(self._failures),
                        "paused [s]": f"{c.paused_s:.3f}", "horizons scored": str(c.horizons),
                        "captures": str(self._captures)})
+        interval = twin.interval()
+        if interval is not None:
+            values["stamp interval [ms]"] = f"{interval * 1e3:.4g}"
         status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         silent = None if self._last_wall is None else now - self._last_wall
         if self._last_wall is None or (silent is not None
@@ -330,6 +333,9 @@ class GapMonitor(Node):
             level = max(level, Level.WARN)
             status.message = (f"comparison paused: measurements missing after "
                               f"t = {twin.paused_since:.3f} s; " + status.message)
+        if (mismatch := twin.rate_mismatch()) is not None:
+            level = max(level, Level.WARN)
+            status.message = f"{mismatch}; {status.message}"
         status.level = _byte(level)
         return status
 
