@@ -265,6 +265,38 @@ def test_a_valve_delay_seen_by_the_position_alone(tmp_path):
     assert result["gap"]["shrinkage"] >= 0.8
 
 
+def test_an_encoders_steps_are_counted_as_its_noise(tmp_path):
+    """The position from a noise-free encoder of 10 um: its values lie on a lattice, where the
+    second differences the noise estimate reads are nil (it read 1e-19 m, and
+    ``diagnosis.json`` said the position had no noise). The step is read from the data (to
+    1e-9), counted as noise of step/sqrt(12) = 2.89 um (a uniform rounding error's, Widrow) and
+    said, and the noise twin logs on the same lattice: rounding a slow ramp to it leaves that
+    RMS error (within 2 %) and nothing else. Records written at full precision have no lattice.
+    (What a perfect model leaves on the position alone is set mostly by other things than the
+    position's noise: the floor rose from 1.2e-7 to 2.2e-7 of the spread squared, the model's
+    own error on these records is 8.6e-7: measured, not asserted.)"""
+    from jetpipe_ros.diagnosis.noise_floor import _logged, twin
+
+    root = record(tmp_path / "data", ModelParams().with_values({"sensors.position_sigma": 0.0}))
+    assert prepare(read_dataset(root)).resolution == {}
+    for path in csvs(root):  # the encoder: counts of 10 um, written as metres
+        header = path.read_text().splitlines()[0].split(",")
+        data = np.loadtxt(path, delimiter=",", skiprows=1)
+        data[:, header.index("y")] = np.round(data[:, header.index("y")] / 1e-5) * 1e-5
+        np.savetxt(path, data, delimiter=",", header=",".join(header), comments="", fmt="%.17g")
+    relog(root, drop=("p1", "p2"))
+    prepared = prepare(read_dataset(root))
+    assert prepared.resolution == {"y": pytest.approx(1e-5, rel=1e-9)}
+    assert prepared.noise["y"] == pytest.approx(1e-5 / np.sqrt(12.0), rel=1e-9)
+    assert any("y is logged in steps of 10 um" in n for n in prepared.notes)
+    k = twin(prepared, ModelParams()).records[1].y / 1e-5
+    assert np.abs(k - np.round(k)).max() < 1e-6
+    ramp = np.linspace(0.0, 0.02, 100_000)
+    rng = np.random.default_rng(0)
+    error = _logged(ramp, prepared.noise["y"], prepared.resolution["y"], rng) - ramp
+    assert np.sqrt(np.mean(error ** 2)) == pytest.approx(1e-5 / np.sqrt(12.0), rel=0.02)
+
+
 @pytest.mark.parametrize("drop", [("p2",), ("p1", "p2")])
 def test_an_unmeasured_pressure_does_not_raise_the_noise_floor(nominal_record, tmp_path, drop):
     """What a perfect model leaves on a record (the noise floor the gap subtracts) is the

@@ -18,6 +18,7 @@ measurements sit a whole number of rows off the command (:mod:`alignment`) is co
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -39,6 +40,15 @@ MIN_SCALE = {"y": 1e-3, "p1": 1e4, "p2": 1e4}
 SPLIT_GAP = 0.0255
 #: Fewest samples a record (or the part of a split one) needs to be predicted and scored.
 MIN_SAMPLES = 50
+#: Fewest changes between successive samples from which a signal's lattice is read
+#: (:func:`resolution`).
+MIN_MOVES = 20
+#: How close to a whole number of steps every change must be for a lattice [steps].
+LATTICE_TOLERANCE = 1e-6
+#: A lattice is said in the data notes when its quantisation noise, step/sqrt(12), is at least
+#: this share of the signal's noise (a printed value's last digit is a lattice too, but its
+#: noise is nothing beside the sensor's).
+MIN_LATTICE_SHARE = 0.1
 #: Row lags at which a controller may react to the position it read: the command 0-3 rows after.
 FEEDBACK_LAGS = range(0, 4)
 #: Share of the command's high-frequency part that the position's noise, fed back, must carry
@@ -137,6 +147,9 @@ class Prepared:
     nuisance: np.ndarray | None = None
     #: what diagnosis.json says of them (``calibration.nuisance``)
     nuisance_report: dict = field(default_factory=dict)
+    #: the step of the lattice each signal was logged on (:func:`resolution`) [m or Pa], for
+    #: the signals logged on one; the noise twin logs on the same (:mod:`noise_floor`)
+    resolution: dict[str, float] = field(default_factory=dict)
 
     def seconds(self, role: str) -> float:
         """Total length of the ``role`` samples [s]."""
@@ -192,6 +205,23 @@ def feedback_share(rec: Record, dt: float) -> float:
     coef, *_ = np.linalg.lstsq(x, u, rcond=None)
     resid = u - x @ coef
     return 1.0 - float(resid @ resid) / total
+
+
+def resolution(x: np.ndarray) -> float:
+    """The step of the lattice a signal was logged on (an encoder's count, a converter's least
+    significant bit) [its unit], or 0 when its values lie on none: the smallest change between
+    successive samples, when every change is a whole number of it (within
+    :data:`LATTICE_TOLERANCE` of one; a float's rounding on values a million steps from zero is
+    under 1e-9 of a step) and there are at least :data:`MIN_MOVES` changes. Noisy values
+    written at full precision change by amounts that are not multiples of the smallest."""
+    d = np.abs(np.diff(x[np.isfinite(x)]))
+    moved = d[d > 0.0]
+    if moved.size < MIN_MOVES:
+        return 0.0
+    k = moved / moved.min()
+    if not np.all(np.abs(k - np.round(k)) <= LATTICE_TOLERANCE):
+        return 0.0
+    return float(np.median(moved / np.round(k)))  # the step, less the smallest's rounding
 
 
 def noise_level(x: np.ndarray) -> float:
@@ -265,14 +295,26 @@ def prepare(dataset: Dataset, shift_rows: int = 0) -> Prepared:
     if not records:
         raise DatasetError(f"{dataset.root}: no experiment the diagnosis can use "
                            f"({'; '.join(notes)})")
-    noise = {s: float(np.median([noise_level(_measured_rows(r, s)) for r in records
-                                 if s in r.signals()] or [0.0])) for s in SIGNALS}
+    steps = {s: max([resolution(_measured_rows(r, s)) for r in records
+                     if s in r.signals()] or [0.0]) for s in SIGNALS}
+    noise = {s: max(float(np.median([noise_level(_measured_rows(r, s)) for r in records
+                                     if s in r.signals()] or [0.0])),
+                    steps[s] / math.sqrt(12.0)) for s in SIGNALS}
     scale = {}
     for s in SIGNALS:
         values = [_measured_rows(r, s) for r in records if s in r.signals()]
         spread = float(np.std(np.concatenate(values))) if values else 0.0
         scale[s] = max(spread, MIN_SCALE[s])
-    prepared = Prepared(records, dt, noise, scale, note, corrections=notes)
+    prepared = Prepared(records, dt, noise, scale, note, corrections=notes,
+                        resolution={s: q for s, q in steps.items() if q > 0.0})
+    for s, q in prepared.resolution.items():
+        if q / math.sqrt(12.0) >= MIN_LATTICE_SHARE * noise[s]:
+            unit, factor = ("um", 1e6) if s == "y" else ("Pa", 1.0)
+            prepared.notes.append(
+                f"{s} is logged in steps of {q * factor:.4g} {unit} (a sensor's or converter's "
+                f"resolution): counted as noise of at least step/sqrt(12) = "
+                f"{q / math.sqrt(12.0) * factor:.3g} {unit}, and the noise twin logs on the same "
+                f"steps")
     missing = [s for s in SIGNALS if s not in prepared.sensors]
     if missing:
         prepared.notes.append(f"no {' or '.join(missing)} measured: the diagnosis compares "

@@ -33,15 +33,25 @@ def twin(prepared: Prepared, params: ModelParams, seed: int = SEED) -> Prepared:
             **initial_state(params, rec.smooth["y"], rec.smooth["p1"], rec.smooth["p2"]),
             "chamber.regulated": rec.regulated})
         tr = simulate(p, rec.u, rec.f_load)
-        # The twin measures what the record measured, no more.
-        sig = {s: getattr(tr, s) + prepared.noise[s] * rng.standard_normal(tr.y.size)
-               if rec.measured(s) else np.full(tr.y.size, np.nan) for s in SIGNALS}
+        # The twin measures what the record measured, no more, on its sensors' lattices.
+        sig = {s: _logged(getattr(tr, s), prepared.noise[s], prepared.resolution.get(s, 0.0),
+                          rng) if rec.measured(s) else np.full(tr.y.size, np.nan)
+               for s in SIGNALS}
         y = sig["y"]
         moving = not rec.locked and rec.measured("y")
         records.append(dataclasses.replace(
             rec, **sig, v=velocity(y, dt) if moving else np.zeros_like(y),
             smooth={s: smoothed(x, dt) if rec.measured(s) else x for s, x in sig.items()}))
     return dataclasses.replace(prepared, records=records, floor={})
+
+
+def _logged(x: np.ndarray, noise: float, step: float, rng: np.random.Generator) -> np.ndarray:
+    """``x`` as a sensor of white noise and resolution ``step`` (0: none) logs it, ``noise``
+    [its unit] the two together: the white part sqrt(noise^2 - step^2 / 12) added, then the
+    value rounded to the lattice (Widrow's uniform quantisation noise, step^2 / 12)."""
+    white = np.sqrt(max(noise ** 2 - step ** 2 / 12.0, 0.0))
+    x = x + white * rng.standard_normal(x.size)
+    return np.round(x / step) * step if step > 0.0 else x
 
 
 def calibrate(prepared: Prepared, params: ModelParams) -> tuple[dict[str, float], np.ndarray]:
