@@ -237,19 +237,24 @@ def test_a_bad_parameter_is_a_startup_error_naming_it(launch, given, said):
     assert "not started" in mon.output
 
 
-def test_a_rig_without_pressure_sensors_is_followed_sample_by_sample(launch, ros_context):
-    """``pressure_sensors: none``: a sample is whole with its command and position, so each is
-    given to the twin at once (a monitor waiting for the pressures would have held every sample
-    until 2,000 were pending, and counted each without a measurement); the chambers are
-    simulated and the twin predicts the position of the samples, with their stamps."""
+@pytest.mark.parametrize("pressure_sensors", ["none", "p1,p2"])
+def test_a_rig_without_pressure_sensors_is_followed_sample_by_sample(launch, ros_context,
+                                                                      pressure_sensors):
+    """A rig that publishes its command and position only. Declared (``pressure_sensors:
+    none``), a sample is whole with those two, so each is given to the twin at once; the
+    chambers are simulated and the twin predicts the position of the samples, with their
+    stamps. Not declared, every sample waits for the pressures (until 2,000 are pending), and
+    the gap status says which topic it waits for and which parameter to set."""
     from jetpipe_ros.nodes import interface
     from twin_data import hardware
 
     ns = "/twin2"
     mon = launch(["-m", "jetpipe_ros.nodes.gap_monitor", "--ros-args", "-r", f"__ns:={ns}",
-                  "-p", "pressure_sensors:=none", "-p", "diagnostic_period:=0.2"])
+                  "-p", f"pressure_sensors:={pressure_sensors}",
+                  "-p", "diagnostic_period:=0.2"])
     mon.wait_for("started:", STARTUP)
-    assert "sensors y, horizon" in mon.output
+    declared = pressure_sensors == "none"
+    assert ("sensors y, horizon" if declared else "sensors y, p1, p2, horizon") in mon.output
     probe = Probe(ros_context, namespace=ns)
     statuses: list[DiagnosticStatus] = []
     probe.node.create_subscription(
@@ -277,6 +282,14 @@ def test_a_rig_without_pressure_sensors_is_followed_sample_by_sample(launch, ros
             position.publish(b)
             if k % 50 == 49:
                 probe.spin_for(0.02)
+        if not declared:
+            def said():
+                return bool(statuses) and "no message on chamber1/pressure, " \
+                    "chamber2/pressure beside 500 commands" in statuses[-1].message
+            assert probe.spin_until(said, 60.0), statuses[-1:] and statuses[-1].message
+            assert "pressure_sensors (now p1,p2)" in statuses[-1].message
+            assert _values(statuses[-1])["samples"] == "0" and not predicted
+            return
 
         def counted():
             return bool(statuses) and _values(statuses[-1])["samples"] == str(len(rows))
@@ -286,6 +299,7 @@ def test_a_rig_without_pressure_sensors_is_followed_sample_by_sample(launch, ros
         assert values["samples without a measurement"] == "0"
         assert values["samples without command"] == "0"
         assert values["stamp interval [ms]"] == "1"
+        assert "no message on" not in statuses[-1].message
         # The predictions go out best-effort, as sensor data: a loaded machine may lose some
         # on the way to this listener (12 % at four times its cores, the test above).
         assert probe.spin_until(lambda: len(predicted) >= 0.5 * (len(rows) - 1), 30.0), \

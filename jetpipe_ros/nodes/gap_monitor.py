@@ -100,7 +100,10 @@ WARN_PERIOD = 5.0  #: throttle of repeated warnings [s]
 #: The messages of a sample (bit of each in the mask).
 PARTS = {"voltage_applied": 1, "joint_states": 2, "chamber1/pressure": 4,
          "chamber2/pressure": 8}
-#: The topic of each signal the hardware may measure (parameter ``sensors``).
+#: Commands after which a sensor topic that has sent nothing is said to be silent (0.2 s at
+#: 1 kHz: a publisher that exists has sent by then).
+SILENT_AFTER = 200
+#: The topic of each signal the hardware may measure (parameter ``pressure_sensors``).
 SENSOR_TOPICS = {"y": "joint_states", "p1": "chamber1/pressure", "p2": "chamber2/pressure"}
 #: Reader queue of each subscription [messages]: 1 s at 1 kHz, so that a slow callback (a
 #: horizon being scored, a capture being copied) loses nothing.
@@ -140,6 +143,7 @@ class GapMonitor(Node):
         self._dropped = 0  # samples given up: no command
         self._incomplete = 0  # samples given to the twin with a measurement missing
         self._late_messages = 0
+        self._messages = dict.fromkeys(self._topics, 0)  # messages received per topic
         self._failures = 0  # messages whose handling failed (logged)
         self._last_wall: float | None = None  # monotonic time of the latest sample [s]
         self._error_since: float | None = None  # monotonic time the gap became ERROR [s]
@@ -205,6 +209,7 @@ class GapMonitor(Node):
                                     throttle_duration_sec=WARN_PERIOD)
 
     def _on_message(self, name: str, msg: Any) -> None:
+        self._messages[name] += 1
         stamp = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
         if stamp <= self._last_ns:
             self._late_messages += 1
@@ -316,11 +321,17 @@ class GapMonitor(Node):
             values["stamp interval [ms]"] = f"{interval * 1e3:.4g}"
         status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         silent = None if self._last_wall is None else now - self._last_wall
+        waiting = self._silent_topics()
+        hint = (f"no message on {', '.join(waiting)} beside {self._messages['voltage_applied']} "
+                f"commands: a sample waits for it; a rig without that sensor says so with "
+                f"pressure_sensors (now {self.opts['pressure_sensors']})" if waiting else "")
         if self._last_wall is None or (silent is not None
                                        and silent > self.opts["stale_timeout"]):
             status.level = _byte(Level.STALE)
             status.message = ("no samples yet" if silent is None else
                               f"no samples for {silent:.1f} s: is the actuator publishing?")
+            if hint:
+                status.message += f"; {hint}"
             return status
         level = twin.level
         if not twin.judged:
@@ -336,8 +347,17 @@ class GapMonitor(Node):
         if (mismatch := twin.rate_mismatch()) is not None:
             level = max(level, Level.WARN)
             status.message = f"{mismatch}; {status.message}"
+        if hint:
+            level = max(level, Level.WARN)
+            status.message = f"{hint}; {status.message}"
         status.level = _byte(level)
         return status
+
+    def _silent_topics(self) -> list[str]:
+        """The sensor topics without a message after :data:`SILENT_AFTER` commands."""
+        if self._messages["voltage_applied"] < SILENT_AFTER:
+            return []
+        return [n for n in self._topics[1:] if self._messages[n] == 0]
 
     def _capture_status(self) -> DiagnosticStatus:
         with self._capture_lock:
