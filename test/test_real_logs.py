@@ -315,7 +315,7 @@ def test_an_unmeasured_pressure_does_not_raise_the_noise_floor(nominal_record, t
         assert floor[s] == pytest.approx(clean[s], rel=0.3), s
 
 
-@pytest.mark.parametrize("declared", [True, False])
+@pytest.mark.parametrize("declared", ["closed_loop", None, "open_loop"])
 def test_the_frequency_response_of_the_position_alone_leaves_the_closed_loop_out(
         nominal_record, tmp_path, declared):
     """Command to position, on records of the model itself without pressure sensors: the
@@ -324,9 +324,10 @@ def test_the_frequency_response_of_the_position_alone_leaves_the_closed_loop_out
     above about 45 Hz their spectra's ratio was its inverse, 3.3 mm/V at -180 deg, against
     which the model that generated the records missed by 34 % in gain and 17 deg (measured
     on the default campaign; 4 % and 1.5 deg without them). A logger that does not declare
-    which records were closed loop (no ``kind`` in dataset.yaml) loses nothing: the records
-    whose command follows the position's noise are found (all of the command's fast part is
-    the controller's there, under 1 % in the open-loop ones), and said."""
+    which records were closed loop (no ``kind`` in dataset.yaml), or that calls them all open
+    loop, loses nothing: the records whose command follows the position's noise are found (all
+    of the command's fast part is the controller's there, under 1 % in the open-loop ones), and
+    said."""
     from jetpipe_ros.diagnosis.data import feedback_share
     from jetpipe_ros.diagnosis.localize import frequency_response
     from jetpipe_ros.diagnosis.score import predict_all
@@ -337,19 +338,21 @@ def test_the_frequency_response_of_the_position_alone_leaves_the_closed_loop_out
     doc = yaml.safe_load((root / "dataset.yaml").read_text())
     closed = {e["file"] for e in doc["experiments"] if e.get("kind") == "closed_loop"}
     assert closed == {"stick_slip.csv", "stick_slip_holdout.csv"}
-    if not declared:
+    if declared != "closed_loop":
         for e in doc["experiments"]:
             e.pop("kind", None)
+            if declared:
+                e["kind"] = declared
         (root / "dataset.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
     prepared = prepare(read_dataset(root))
     assert {r.entry.file for r in prepared.records if r.closed_loop} == closed
-    assert {r.entry.file for r in prepared.records if r.feedback} == (set() if declared
-                                                                      else closed)
+    found = set() if declared == "closed_loop" else closed
+    assert {r.entry.file for r in prepared.records if r.feedback} == found
     shares = {r.entry.file: feedback_share(r, prepared.dt) for r in prepared.records}
     assert all(shares[f] > 0.99 for f in closed)
     assert all(x < 0.01 for f, x in shares.items() if f not in closed)
-    said = [n for n in prepared.notes if "does not declare (kind: closed_loop)" in n]
-    assert len(said) == (0 if declared else 2)
+    words = "declares it open_loop" if declared else "does not declare (kind: closed_loop)"
+    assert len([n for n in prepared.notes if words in n]) == len(found)
     fr = frequency_response(prepared, {"nominal": predict_all(ModelParams(), prepared, None)},
                             "y")
     high = fr["bands"]["20-70 Hz"]["nominal"]

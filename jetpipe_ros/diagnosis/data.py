@@ -333,11 +333,12 @@ def prepare(dataset: Dataset, shift_rows: int = 0) -> Prepared:
         share = feedback_share(rec, dt)
         if share >= FEEDBACK_SHARE:
             rec.feedback = True
+            said = ("declares it open_loop" if rec.entry.extra.get("kind") == "open_loop"
+                    else "does not declare (kind: closed_loop)")
             prepared.notes.append(
-                f"{rec.entry.file}: recorded in closed loop, which dataset.yaml does not "
-                f"declare (kind: closed_loop): {share:.0%} of the command's fast part follows "
-                f"the position's noise, a controller's answer; left out of the frequency "
-                f"response")
+                f"{rec.entry.file}: recorded in closed loop, which dataset.yaml {said}: "
+                f"{share:.0%} of the command's fast part follows the position's noise, a "
+                f"controller's answer; left out of the frequency response")
     return prepared
 
 
