@@ -12,7 +12,9 @@ its own). Rows the logger lost were filled in on the regular grid by the dataset
 (:attr:`jetpipe_ros.dataset.Experiment.valid`): they are never compared with the model, and an
 experiment is split where more than :data:`SPLIT_GAP` s are missing in a row. A logger whose
 measurements sit a whole number of rows off the command (:mod:`alignment`) is corrected here
-(``shift_rows`` of :func:`prepare`).
+(``shift_rows`` of :func:`prepare`). A record whose command follows the position's noise was
+recorded in closed loop, declared so or not (:func:`feedback_share`); a signal logged on a
+lattice (an encoder's counts) has its step counted in its noise (:func:`resolution`).
 """
 
 from __future__ import annotations
