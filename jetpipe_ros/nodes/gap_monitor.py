@@ -4,7 +4,8 @@ Subscribes to an actuator's outputs (relative names, so ``-r __ns:=/axis1`` watc
 ``voltage_applied`` (the command [V] and load [N] applied over the sample ending at the stamp),
 ``joint_states`` (position [m]) and ``chamber1/pressure``, ``chamber2/pressure`` [Pa], all
 stamped; the messages of one stamp make a sample. A rig without one or both pressure sensors
-says so (``pressure_sensors``): those chambers are simulated and their topics not subscribed. Each sample goes through the twin
+says so (``pressure_sensors``): those chambers are simulated and their topics not subscribed.
+Each sample goes through the twin
 (:class:`jetpipe_ros.twin.Twin`: the model restarted from the measurements every ``horizon``),
 whose predictions are published at once, with the measurement's stamp, on
 ``twin/joint_states`` and ``twin/chamber1/pressure``, ``twin/chamber2/pressure``. Every

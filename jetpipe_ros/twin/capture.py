@@ -15,7 +15,6 @@ dataset contract has it for a bench without that sensor.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -96,9 +95,8 @@ def write_capture(rows: np.ndarray, root: str | Path, note: dict | None = None,
         part = data[lo:hi]
         entry = Entry(file=f"capture_{i:02d}.csv", piston="free", load_force=0.0,
                       role="holdout" if i % 3 == 2 else "train",
-                      extra={"captured_from_s": float(part[0, 0]) if part.size else math.nan,
-                             **note})
-        cols = {"t": part[:, 0] - part[0, 0] if part.size else part[:, 0],
+                      extra={"captured_from_s": float(part[0, 0]), **note})
+        cols = {"t": part[:, 0] - part[0, 0],
                 "u": part[:, 1], **{c: part[:, COLUMNS.index(c)] for c in SENSORS
                                     if c in sensors},
                 "f_load": part[:, 2]}
