@@ -351,8 +351,10 @@ def test_the_frequency_response_of_the_position_alone_leaves_the_closed_loop_out
     shares = {r.entry.file: feedback_share(r, prepared.dt) for r in prepared.records}
     assert all(shares[f] > 0.99 for f in closed)
     assert all(x < 0.01 for f, x in shares.items() if f not in closed)
-    words = "declares it open_loop" if declared else "does not declare (kind: closed_loop)"
-    assert len([n for n in prepared.notes if words in n]) == len(found)
+    words = "declares open_loop" if declared else "does not declare (kind: closed_loop)"
+    said = [n for n in prepared.notes if words in n]
+    assert len(said) == (1 if found else 0)
+    assert all(f"{f} (100%)" in said[0] for f in found)
     fr = frequency_response(prepared, {"nominal": predict_all(ModelParams(), prepared, None)},
                             "y")
     high = fr["bands"]["20-70 Hz"]["nominal"]

@@ -329,18 +329,21 @@ def prepare(dataset: Dataset, shift_rows: int = 0) -> Prepared:
     if all(r.locked for r in records):
         prepared.notes.append("all experiments are locked-piston tests: the mechanics "
                               "(friction, mass) cannot be judged")
+    found: dict[str, list[str]] = {}
     for rec in records:
         if rec.closed_loop or rec.regulated:
             continue
         share = feedback_share(rec, dt)
         if share >= FEEDBACK_SHARE:
             rec.feedback = True
-            said = ("declares it open_loop" if rec.entry.extra.get("kind") == "open_loop"
+            said = ("declares open_loop" if rec.entry.extra.get("kind") == "open_loop"
                     else "does not declare (kind: closed_loop)")
-            prepared.notes.append(
-                f"{rec.entry.file}: recorded in closed loop, which dataset.yaml {said}: "
-                f"{share:.0%} of the command's fast part follows the position's noise, a "
-                f"controller's answer; left out of the frequency response")
+            found.setdefault(said, []).append(f"{rec.entry.file} ({share:.0%})")
+    for said, files in found.items():
+        prepared.notes.append(
+            f"{', '.join(files)}: recorded in closed loop, which dataset.yaml {said}: that "
+            f"share of the command's fast part follows the position's noise, a controller's "
+            f"answer; left out of the frequency response")
     return prepared
 
 
