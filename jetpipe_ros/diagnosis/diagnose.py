@@ -44,7 +44,7 @@ from jetpipe_ros.diagnosis.noise_floor import calibrate, twin
 from jetpipe_ros.diagnosis.placement import place, subsystem_gaps
 from jetpipe_ros.diagnosis.separation import (adopt, separating_experiment, stand_ins,
                                               words)
-from jetpipe_ros.diagnosis.prediction import HORIZON, persistence, settled
+from jetpipe_ros.diagnosis.prediction import HORIZON, persistence, without_unknown_start
 from jetpipe_ros.diagnosis.score import (METRIC, Score, difference_gap, effective_samples,
                                          predict_all, score, window_errors)
 from jetpipe_ros.diagnosis.verdict import (NOISE_GAP, Ranked, Settled, Verdict, decide,
@@ -448,7 +448,7 @@ def candidates_for(nominal: ModelParams, unjudged: Mapping[str, str]) -> list[Ca
 def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
               progress: Callable[[str], None], aligned: Alignment) -> Diagnosis:
     dt = prepared.dt
-    prepared = settled(prepared, nominal)
+    prepared = without_unknown_start(prepared, nominal)
     progress(f"{len(prepared.records)} experiments, {prepared.seconds('train'):.1f} s train, "
              f"{prepared.seconds('holdout'):.1f} s holdout; {prepared.split_note}")
 

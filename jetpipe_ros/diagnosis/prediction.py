@@ -15,8 +15,8 @@ restarts by the model instead, an unmeasured pressure drifts with every window's
 a perfect model then misses by 3 % of the position's spread: a noise floor 100 times the
 measured sensors', under which a 4.5 ms valve delay vanished.) The replay must start somewhere,
 and nothing measured says where: :func:`unknown_start` finds how long that choice still matters,
-and :func:`settled` leaves those first samples out of the comparison. Locked-piston
-experiments are stable and are predicted whole. Friction tests on the regulated rig are
+and :func:`without_unknown_start` leaves those first samples out of the comparison.
+Locked-piston experiments are stable and are predicted whole. Friction tests on the regulated rig are
 predicted as the mechanics alone: their pressures are the regulators'.
 
 The same kernel also replays one subsystem with its inputs held on the measurements: the valve
@@ -175,7 +175,7 @@ def unknown_start(params: ModelParams, rec: Record, dt: float) -> int:
     return int(apart[-1]) + 1 if apart.size else 0
 
 
-def settled(prepared: Prepared, params: ModelParams) -> Prepared:
+def without_unknown_start(prepared: Prepared, params: ModelParams) -> Prepared:
     """``prepared`` with the samples :func:`unknown_start` finds left out of training and
     held-out comparison (a note says how much), unless that would leave less than the
     diagnosis needs (then a note says the start is compared unsettled)."""
