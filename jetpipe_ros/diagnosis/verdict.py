@@ -260,20 +260,36 @@ def left_out(r: Ranked, ranking: Sequence[Ranked], floor_windows: np.ndarray | N
     (seen on the plant's supply behind a drooping regulator, four seeds of four: a sensor lag
     or a leak beside the supply took 32-34 % of what the supply left, and 1.5-5.4 % beyond
     noise remained). A pair neither of whose members was fitted alone is not judged so."""
+    why = left_out_rule(r, ranking, floor_windows)
+    if why is None:
+        return None
+    rule, names = why
+    if rule == "gains little":
+        return f"gains too little over {names[0]} alone"
+    if rule == "pinned":
+        return f"{', '.join(names)} at the edge of its search range"
+    return f"{', '.join(names)} switched off leaves as little"
+
+
+def left_out_rule(r: Ranked, ranking: Sequence[Ranked], floor_windows: np.ndarray | None
+                  ) -> tuple[str, list[str]] | None:
+    """The rule of :func:`left_out` that leaves ``r`` out and what it names: ``"pinned"`` with
+    the knobs at an edge, ``"gains little"`` with the better single member, ``"idle"`` with the
+    second effects that switched off leave as little; None when no rule does."""
     if not r.explains:
         return None
     if len(r.fit.effects) == 1:
         pinned = pinned_single(r)
-        return f"{', '.join(pinned)} at the edge of its search range" if pinned else None
+        return ("pinned", pinned) if pinned else None
     best = _better_single(r, ranking)
     if best is None:
         return None
     if not _gains_over_first(r, ranking, floor_windows):
-        return f"gains too little over {best.fit.name} alone"
+        return "gains little", [best.fit.name]
     if pinned := pinned_second(r, ranking):
-        return f"{', '.join(pinned)} at the edge of its search range"
+        return "pinned", pinned
     if idle := idle_second(r, ranking, floor_windows):
-        return f"{', '.join(idle)} switched off leaves as little"
+        return "idle", idle
     return None
 
 
@@ -373,8 +389,8 @@ def decide(ranking: Sequence[Ranked], base: Score, base_windows: np.ndarray,
                    f"{', '.join(pinned)} at the edge of its range: taken as compensating what "
                    f"the form of {win.fit.name} misses, not named")
     # Said only where it decided: the pair would be named but for its idle second effect.
-    idle = [(r, off) for r in beside if (off := idle_second(r, ranking, floor_windows))
-            and _gains_over_first(r, ranking, floor_windows) and not pinned_second(r, ranking)]
+    idle = [(r, why[1]) for r in beside
+            if (why := left_out_rule(r, ranking, floor_windows)) and why[0] == "idle"]
     if idle:
         r, (off, *_) = idle[0]
         reason += (f"; {r.fit.name} leaves less ({r.fit.holdout.gap:.2f} %), but with {off} "
