@@ -168,8 +168,13 @@ def overlay_figure(prepared: Prepared, preds: dict, result: dict, augmented: boo
     fig, axes = plt.subplots(len(signals) + 1, 1, figsize=(10, 2.0 * (len(signals) + 1)),
                              sharex=True)
     units = {"y": ("position [mm]", 1e3), "p1": ("p1 [bar]", 1e-5), "p2": ("p2 [bar]", 1e-5)}
+    # The record's start that no comparison uses (the replay of an unmeasured chamber still
+    # depending on where it started: prediction.unknown_start).
+    start = int(np.argmax(rec.train | rec.holdout))
     for ax, s in zip(axes, signals):
         label, k = units[s]
+        if start > 1:
+            ax.axvspan(rec.t[0], rec.t[start], color="0.88", lw=0, label="not compared")
         ax.plot(rec.t, rec.signal(s) * k, color=COLORS["data"], lw=1.2, label="data")
         for name in ("nominal", "augmented") if augmented else ("nominal",):
             ax.plot(rec.t, preds[name][best].signal(s) * k, color=COLORS[name], lw=0.9,
