@@ -16,8 +16,8 @@ a perfect model then misses by 3 % of the position's spread: a noise floor 100 t
 measured sensors', under which a 4.5 ms valve delay vanished.) The replay must start somewhere,
 and nothing measured says where: :func:`unknown_start` finds how long that choice still matters,
 and :func:`without_unknown_start` leaves those first samples out of the comparison.
-Locked-piston experiments are stable and are predicted whole. Friction tests on the regulated rig are
-predicted as the mechanics alone: their pressures are the regulators'.
+Locked-piston experiments are stable and are predicted whole. Friction tests on the regulated rig
+are predicted as the mechanics alone: their pressures are the regulators'.
 
 The same kernel also replays one subsystem with its inputs held on the measurements: the valve
 and chambers driven by the measured motion (``mode="chambers"``), or the mechanics driven by the
@@ -26,9 +26,8 @@ measured pressures (``mode="mechanics"``), so each can be judged apart.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import dataclasses
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -155,8 +154,8 @@ def unknown_start(params: ModelParams, rec: Record, dt: float) -> int:
     (``sensors.pressure_sigma`` [Pa]) the replay knows the pressure as well as a sensor would,
     whatever the start. Before it, a position-only record holds the replay's guess, not the
     hardware: on the model's own records with a noise-free position that first stretch made
-    the error 7 times what the same records showed later, while the noise twin, simulated from
-    the very state the replay assumes, showed nothing of it.
+    the held-out error 7 times the noise twin's, which, simulated from the very state the
+    replay assumes, showed nothing of it.
     """
     unmeasured = [s for s in ("p1", "p2") if not rec.measured(s)]
     if not unmeasured or rec.locked or rec.regulated or not rec.measured("y"):
