@@ -162,12 +162,12 @@ def unknown_start(params: ModelParams, rec: Record, dt: float) -> int:
         return 0
     out = {"p1": kernel.OUT_P1, "p2": kernel.OUT_P2}
     drive = _motion_drive(rec, rec.smooth["y"], dt)
-    ends = []
-    for p0 in START_RANGE:
-        start = {"mechanics.locked": False, "sensors.noise": False,
-                 **initial_state(params, rec.smooth["y"], rec.smooth["p1"], rec.smooth["p2"]),
-                 "chamber.initial_pressure_1": p0, "chamber.initial_pressure_2": p0}
-        ends.append(_run(params.at_sample_time(dt).with_values(start), rec, drive))
+    base = params.at_sample_time(dt).with_values({
+        "mechanics.locked": False, "sensors.noise": False,
+        **initial_state(params, rec.smooth["y"], rec.smooth["p1"], rec.smooth["p2"])})
+    ends = [_run(base.with_values({"chamber.initial_pressure_1": p0,
+                                   "chamber.initial_pressure_2": p0}), rec, drive)
+            for p0 in START_RANGE]
     spread = np.max([np.abs(ends[1][:, out[s]] - ends[0][:, out[s]]) for s in unmeasured],
                     axis=0)
     apart = np.flatnonzero(~(spread <= params["sensors.pressure_sigma"]))
