@@ -83,13 +83,17 @@ EXPERIMENTS = [("charge", True, 300), ("square", False, 400), ("last", False, 50
 
 
 def write_bag(path: Path, ns: str = "/fb", close: bool = True,
-              sync_every: int = 0, seed: int = 0) -> tuple[BagWriter, dict]:
+              sync_every: int = 0, seed: int = 0,
+              pressures: tuple[str, ...] = ("chamber1/pressure", "chamber2/pressure")
+              ) -> tuple[BagWriter, dict]:
     """A bag of three experiments (events after each), synced every ``sync_every`` samples
     (as the recorder's periodic syncs would); returns the writer and the data. Bags of another
-    ``seed`` hold other values."""
+    ``seed`` hold other values; the pressure topics not in ``pressures`` are not in the bag
+    (a rig without those sensors, recorded by anything that records what is there)."""
     store = get_typestore(TYPESTORE)
     topics = {f"{ns}/{t.name}" if not t.name.startswith("/") else t.name: t.type
-              for t in interface.load_topics().values()}
+              for t in interface.load_topics().values()
+              if "pressure" not in t.name or t.name in pressures}
     bag = BagWriter(path, topics)
     js_t, fp_t = store.types["sensor_msgs/msg/JointState"], store.types[
         "sensor_msgs/msg/FluidPressure"]
@@ -118,8 +122,9 @@ def write_bag(path: Path, ns: str = "/fb", close: bool = True,
                 [y[i]]), velocity=np.array([0.0]), effort=np.array([0.0])),
                 "sensor_msgs/msg/JointState")
             for c, p in (("chamber1/pressure", p1[i]), ("chamber2/pressure", p2[i])):
-                put(c, k, fp_t(header=header(k), fluid_pressure=p, variance=0.0),
-                    "sensor_msgs/msg/FluidPressure")
+                if c in pressures:
+                    put(c, k, fp_t(header=header(k), fluid_pressure=p, variance=0.0),
+                        "sensor_msgs/msg/FluidPressure")
             put("voltage_applied", k, js_t(header=header(k), name=["valve", "load"],
                                            position=np.array([u[i], math.nan]),
                                            velocity=np.array([], dtype=float),
@@ -146,6 +151,20 @@ def test_synthetic_bag_exports(tmp_path):
     for entry, x in ds:
         np.testing.assert_allclose(x.p1, data[entry.name]["p1"], rtol=1e-8)
         np.testing.assert_allclose(x.u, data[entry.name]["u"])
+
+
+def test_a_bag_without_pressure_topics_exports_the_position_alone(tmp_path):
+    """A rig with no pressure sensor: no pressure topic in the bag. Each CSV has no p1, p2
+    column, the export says so, and the dataset reads as position-only records."""
+    _, data = write_bag(tmp_path / "bag", pressures=())
+    said = []
+    ds = read_dataset(export_bag(tmp_path / "bag", tmp_path / "out", progress=said.append))
+    for entry, x in ds:
+        header = (ds.root / entry.file).read_text().splitlines()[0]
+        assert header == "t,u,y,v,f_load" and x.p1 is None and x.p2 is None
+        np.testing.assert_allclose(x.y, data[entry.name]["y"], atol=1e-12)
+        np.testing.assert_allclose(x.u, data[entry.name]["u"])
+    assert "p1 and p2 not measured (no message on the topic) in every experiment" in said[-1]
 
 
 # -- item 2: a bag never closed, cut at any byte -----------------------------------------------

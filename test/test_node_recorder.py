@@ -273,6 +273,49 @@ def test_record_mode_keeps_a_real_time_stream(launch, tmp_path):
     assert stamps.size / (expected - min(dropped, expected // 2)) > 0.9
 
 
+#: A locked charge held out and a free square: short, one of each rig state.
+ONE_PRESSURE_PLAN = """
+settle: {center: 0.5, rest: 0.3}
+experiments:
+  - {name: charge_1p15V, kind: open_loop, locked: true, role: holdout, duration: 0.5,
+     voltage: {signal: steps, levels: [1.15, -1.15], durations: [0.3, 0.2]}}
+  - {name: square_0p6V, kind: open_loop, role: train, duration: 1.0,
+     voltage: {signal: square, amplitude: 0.6, frequency: 2.0}}
+"""
+
+
+def test_a_rig_with_one_pressure_sensor_is_recorded_and_exported_without_the_other(launch,
+                                                                                  tmp_path):
+    """``pressure_sensors: p1`` on the simulator: chamber2/pressure is never advertised, the
+    recorder does not wait for it and says so, and the export writes p1 but no p2 column
+    (a one-pressure record, as the diagnosis reads it); what was measured is the offline
+    runner's."""
+    plan_file = tmp_path / "plan.yaml"
+    plan_file.write_text(ONE_PRESSURE_PLAN)
+    bag = tmp_path / "one"
+    rec = _composed(launch, "/one", bag, actuator_sim={"pressure_sensors": "p1"},
+                    id_recorder={"campaign_file": str(plan_file)})
+    rec.wait_for("campaign done", STARTUP + 120.0)
+    assert rec.popen.wait(30.0) == 0, rec.output
+    assert re.search(r"nothing on /one/chamber2/pressure: a rig without that pressure sensor",
+                     rec.output), rec.output
+    with Reader(bag) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+    assert counts["/one/chamber2/pressure"] == 0 and counts["/one/chamber1/pressure"] > 1500
+    said = []
+    exported = read_dataset(export_bag(bag, tmp_path / "ros", progress=said.append))
+    offline = read_dataset(run_campaign_offline(ModelParams(), load_campaign(plan_file),
+                                                tmp_path / "off"))
+    for (entry, ros), (_, off) in zip(exported, offline, strict=True):
+        header = (exported.root / entry.file).read_text().splitlines()[0]
+        assert header == "t,u,y,p1,v,f_load", header
+        assert ros.p2 is None and entry.extra["missing_samples"] == 0
+        assert np.max(np.abs(ros.u - off.u)) < 1e-6, entry.name
+        assert np.sqrt(np.mean((ros.y - off.y) ** 2)) < 2e-5, entry.name
+        assert np.sqrt(np.mean((ros.p1 - off.p1) ** 2)) < 200.0, entry.name
+    assert said[-1].startswith("p2 not measured (no message on the topic) in every "), said
+
+
 def test_export_refuses_a_directory_without_metadata(tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(BagError, match="not a rosbag2 bag"):

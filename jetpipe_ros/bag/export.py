@@ -5,7 +5,10 @@ sample's stamp, sample count, piston, role, load). For every complete experiment
 takes, at each sample's stamp t_k (simulated time): y and v from ``joint_states``, p1 and p2
 from the pressure topics, and u and f_load from ``voltage_applied`` stamped t_k+1 (the command
 and the load held over [t_k, t_k+1); bags without the load joint: the event's constant load), so
-row k follows the convention of :func:`jetpipe_ros.model.simulate`. Regulated friction tests are
+row k follows the convention of :func:`jetpipe_ros.model.simulate`. A rig without one or both
+chamber pressure sensors is exported as it was recorded: a pressure topic absent from the bag,
+or without a message in an experiment's time span, leaves that column out of the experiment's
+CSV (a position-only or one-pressure record, docs/data.md), and the export says so. Regulated friction tests are
 marked ``regulated: true`` in ``dataset.yaml``, as ``jetpipe identify`` reads them. A few
 samples lost in transport are interpolated and counted; more than :data:`MAX_MISSING` of an
 experiment is an error.
@@ -38,18 +41,22 @@ from jetpipe_ros.dataset.dataset import check_target
 MAX_MISSING = 0.01  #: largest fraction of an experiment's samples that may be interpolated
 #: Stamped topics read, by the suffix their (possibly namespaced) name ends with.
 SIGNALS = ("joint_states", "chamber1/pressure", "chamber2/pressure", "voltage_applied")
+#: Those a rig may lack (the pressure sensors), by the column they fill.
+OPTIONAL = {"p1": "chamber1/pressure", "p2": "chamber2/pressure"}
 
 
 class BagError(DatasetError):
     """A bag cannot be exported; the message names the bag and what is missing."""
 
 
-def _find(bag: Path, names: list[str], suffix: str) -> str:
+def _find(bag: Path, names: list[str], suffix: str) -> str | None:
+    """The one topic of ``names`` ending in ``suffix`` (None for an optional signal the bag
+    lacks); BagError if there are several, or none of a required signal."""
     hits = [n for n in names if n == f"/{suffix}" or n.endswith(f"/{suffix}")]
-    if len(hits) != 1:
+    if len(hits) > 1 or (not hits and suffix not in OPTIONAL.values()):
         raise BagError(f"{bag}: expected one topic ending in {suffix!r}, found "
                        f"{hits or 'none'} (topics: {', '.join(sorted(names))})")
-    return hits[0]
+    return hits[0] if hits else None
 
 
 def read_signals(bag: str | Path, progress: Callable[[str], None] = print
@@ -113,9 +120,9 @@ def _suffix(topic: str) -> str | None:
 
 
 def _topics(bag: Path, names: list[str]) -> dict[str, str]:
-    """{topic: signal suffix} of the bag's topics ``names``; BagError if one is missing or
-    ambiguous or there are no campaign events."""
-    topics = {_find(bag, names, s): s for s in SIGNALS}
+    """{topic: signal suffix} of the bag's topics ``names``; BagError if a required one is
+    missing, one is ambiguous or there are no campaign events."""
+    topics = {t: s for s in SIGNALS if (t := _find(bag, names, s)) is not None}
     if EVENTS_TOPIC not in names:
         raise BagError(f"{bag}: no {EVENTS_TOPIC} topic: not recorded by id_recorder "
                        f"running a campaign")
@@ -157,6 +164,14 @@ def _decode(bag: Path, names: list[str], messages: Iterator[tuple[str, str, byte
     return signals, events
 
 
+def _within(sig: dict[str, np.ndarray] | None, stamps: np.ndarray) -> bool:
+    """True if the signal ``sig`` (None: not in the bag) has a stamp within ``stamps``' span."""
+    if sig is None:
+        return False
+    t = sig["t"]
+    return bool(np.any((t >= stamps[0]) & (t <= stamps[-1])))
+
+
 def _at(bag: Path, name: str, sig: dict[str, np.ndarray], key: str,
         stamps: np.ndarray) -> tuple[np.ndarray, int]:
     """Values of ``sig[key]`` at ``stamps`` [ns]; missing stamps interpolated; their count."""
@@ -174,7 +189,8 @@ def export_bag(bag: str | Path, out_dir: str | Path, overwrite: bool = False,
                progress: Callable[[str], None] = print) -> Path:
     """Write the complete experiments of campaign bag ``bag`` as a dataset in ``out_dir``.
 
-    Each CSV has ``t,u,y,p1,p2,v,f_load``; ``dataset.yaml`` has piston, load_force, role,
+    Each CSV has ``t,u,y,p1,p2,v,f_load`` (without the pressures the rig did not measure);
+    ``dataset.yaml`` has piston, load_force, role,
     kind and the number of interpolated samples (``missing_samples``). Written atomically.
     """
     bag = Path(bag)
@@ -188,17 +204,22 @@ def export_bag(bag: str | Path, out_dir: str | Path, overwrite: bool = False,
     if not complete:
         raise BagError(f"{bag}: no complete experiment in the bag")
     out = []
+    without: dict[str, list[str]] = {}  # experiments by the pressures their rig did not log
     for e in complete:
         name, n, dt_ns = e["name"], int(e["samples"]), int(round(e["dt"] * 1e9))
         stamps = int(e["start_ns"]) + dt_ns * np.arange(n, dtype=np.int64)
         cols: dict[str, np.ndarray] = {"t": np.arange(n) * e["dt"]}
         missing = 0
+        unmeasured = [key for key, suffix in OPTIONAL.items()
+                      if not _within(signals.get(suffix), stamps)]
         for key, suffix, at in (("u", "voltage_applied", stamps + dt_ns),
                                 ("y", "joint_states", stamps),
                                 ("p1", "chamber1/pressure", stamps),
                                 ("p2", "chamber2/pressure", stamps),
                                 ("v", "joint_states", stamps),
                                 ("f_load", "voltage_applied", stamps + dt_ns)):
+            if key in unmeasured:
+                continue
             field = {"p1": "p", "p2": "p"}.get(key, key)
             cols[key], lost = _at(bag, name, signals[suffix], field, at)
             missing = max(missing, lost)
@@ -213,7 +234,13 @@ def export_bag(bag: str | Path, out_dir: str | Path, overwrite: bool = False,
         out.append((Entry(f"{name}.csv", piston="locked" if e["locked"] else "free",
                           load_force=float(e["load_force"]), role=e["role"], extra=extra),
                     cols))
+        if unmeasured:
+            without.setdefault(" and ".join(unmeasured), []).append(name)
         progress(f"{name}: {n} samples ({n * e['dt']:.1f} s), {missing} interpolated")
+    for lacking, names in without.items():
+        where = "every experiment" if len(names) == len(complete) else ", ".join(names)
+        progress(f"{lacking} not measured (no message on the topic) in {where}: left out of "
+                 f"the CSVs, read as a record without that sensor")
     return write_dataset(out_dir, out, overwrite=overwrite, protect=[bag])
 
 

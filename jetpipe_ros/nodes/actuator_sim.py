@@ -18,6 +18,10 @@ Time modes (parameter ``time_mode``):
   seconds so that a commander that joins late can answer. Campaigns run this way (the
   ``id_recorder`` and ``controller`` answer every sample), as fast as the loop turns.
 
+A rig without one or both chamber pressure sensors (position only, or one pressure) is
+emulated with ``pressure_sensors``: the topics of the pressures it lacks are not advertised at
+all, as on such a rig; the model still simulates both chambers.
+
 Every sample also publishes ``voltage_applied``: the command [V] (joint ``valve``, position) and
 the external load [N] (joint ``load``, effort) held over the sample that ends at its stamp, so a
 recording pairs each measurement with the inputs that produced it whatever the transport delays.
@@ -87,6 +91,9 @@ NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
     ParamSpec("lockstep_kick", 0.2,
               "lockstep: re-publish the latest sample after this long without a voltage_cmd",
               "s", 0.01, 10.0),
+    ParamSpec("pressure_sensors", "p1,p2", "The chamber pressures the emulated rig measures "
+              "and publishes beside the position (the others' topics are not advertised)",
+              choices=interface.PRESSURE_SENSORS),
     ParamSpec("executor", "events",
               "rclpy executor: EventsExecutor (less CPU) or SingleThreadedExecutor",
               choices=("events", "single")),
@@ -129,8 +136,13 @@ class ActuatorSim(Node):
         self._resets = 0
 
         self._make_messages()
+        measured = interface.measured_pressures(opts["pressure_sensors"])
+        #: (message, output index, topic) of each pressure the emulated rig measures
+        self._pressures = [(msg, index, interface.SENSOR_TOPICS[p]) for msg, index, p in (
+            (self._msg_p[0], k.OUT_P1_MEAS, "p1"), (self._msg_p[1], k.OUT_P2_MEAS, "p2"))
+            if p in measured]
         self._pub = {name: interface.publisher(self, name) for name in (
-            "position", "chamber1/pressure", "chamber2/pressure", "friction_force",
+            "position", *(topic for _, _, topic in self._pressures), "friction_force",
             "joint_states", "voltage_applied")}
         if self._sim:
             self._pub["/clock"] = interface.publisher(self, "/clock")
@@ -152,7 +164,8 @@ class ActuatorSim(Node):
             rate = ", lockstep (one sample per voltage_cmd)"
         self.get_logger().info(
             f"started: time_mode {opts['time_mode']}{rate}, sample time {self._dt * 1e3:g} ms, "
-            f"effects: {effects}, topic contract {share_file(interface.CONTRACT)}")
+            f"effects: {effects}, pressure sensors: {opts['pressure_sensors']}, topic contract "
+            f"{share_file(interface.CONTRACT)}")
 
     # -- start-up ---------------------------------------------------------------------------
 
@@ -362,8 +375,7 @@ class ActuatorSim(Node):
         y = out[k.OUT_Y_MEAS]
         self._msg_position.data = y
         self._pub["position"].publish(self._msg_position)
-        for msg, index, name in ((self._msg_p[0], k.OUT_P1_MEAS, "chamber1/pressure"),
-                                 (self._msg_p[1], k.OUT_P2_MEAS, "chamber2/pressure")):
+        for msg, index, name in self._pressures:
             msg.header.stamp.sec = sec
             msg.header.stamp.nanosec = nanosec
             msg.fluid_pressure = out[index]

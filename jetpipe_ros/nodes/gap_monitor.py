@@ -67,7 +67,7 @@ NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
     ParamSpec("sample_time", 0.001, "Sample time of the measurements", "s", 1e-5, 1.0),
     ParamSpec("pressure_sensors", "p1,p2", "The chamber pressures the hardware measures beside "
               "the position (the others are simulated, not waited for, and no column of a "
-              "capture)", choices=("p1,p2", "p1", "p2", "none")),
+              "capture)", choices=interface.PRESSURE_SENSORS),
     ParamSpec("horizon", 1.0, "Time between restarts of the model from the measurements", "s",
               0.02, 60.0),
     ParamSpec("warmup", 0.05, "Held start of each horizon (the valve sees the command)", "s",
@@ -104,8 +104,6 @@ PARTS = {"voltage_applied": 1, "joint_states": 2, "chamber1/pressure": 4,
 #: Commands after which a sensor topic that has sent nothing is said to be silent (0.2 s at
 #: 1 kHz: a publisher that exists has sent by then).
 SILENT_AFTER = 200
-#: The topic of each signal the hardware may measure (parameter ``pressure_sensors``).
-SENSOR_TOPICS = {"y": "joint_states", "p1": "chamber1/pressure", "p2": "chamber2/pressure"}
 #: Reader queue of each subscription [messages]: 1 s at 1 kHz, so that a slow callback (a
 #: horizon being scored, a capture being copied) loses nothing.
 QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
@@ -133,9 +131,8 @@ class GapMonitor(Node):
         except ValueError as exc:
             raise StartupError([f"parameters: {exc}"]) from None
         self.twin = Twin(params, settings)
-        pressures = self.opts["pressure_sensors"]
-        self._sensors = ("y", *(() if pressures == "none" else pressures.split(",")))
-        self._topics = ["voltage_applied", *(SENSOR_TOPICS[s] for s in self._sensors)]
+        self._sensors = ("y", *interface.measured_pressures(self.opts["pressure_sensors"]))
+        self._topics = ["voltage_applied", *(interface.SENSOR_TOPICS[s] for s in self._sensors)]
         self._complete = sum(PARTS[name] for name in self._topics)  # mask of a whole sample
         self.recent = Recent(self.opts["capture_seconds"], settings.dt)
         self._t0_ns: int | None = None

@@ -26,7 +26,9 @@ SIGKILL cannot be caught: the bag then lacks ``metadata.yaml`` and the MCAP foot
 writer syncs it at least every second (:data:`jetpipe_ros.bag.writer.SYNC_PERIOD`; also while
 idle, from a timer), so ``jetpipe export`` recovers everything recorded up to about a second
 before the kill. Dropped messages (gaps in the 1 kHz stamps) are counted and reported with the
-kept fraction.
+kept fraction. A rig without one or both chamber pressure sensors (hardware, or
+``actuator_sim``'s ``pressure_sensors``) is recorded as it is: a pressure topic that sends
+nothing is not waited for, the report says so, and ``jetpipe export`` leaves its column out.
 
 A peer that dies is detected: in a campaign, no new sample for ``peer_timeout`` seconds (wall
 clock) while the simulator still re-publishes its waiting sample means the controller (in a
@@ -274,9 +276,14 @@ class Recorder(Node):
         return self.ready and not self.done
 
     def drained(self) -> bool:
-        """True when every stamped stream has reached the latest stamp seen."""
-        return all(self._last.get(self._names[t]) == self._now_ns for t in (
-            "joint_states", "chamber1/pressure", "chamber2/pressure", "voltage_applied"))
+        """True when every stamped stream has reached the latest stamp seen (a pressure topic
+        that has sent nothing is a sensor the rig lacks, not a stream to wait for)."""
+        streams = [self._names[t] for t in ("joint_states", "voltage_applied")]
+        streams += [n for n in self._pressure_topics() if n in self._last]
+        return all(self._last.get(n) == self._now_ns for n in streams)
+
+    def _pressure_topics(self) -> list[str]:
+        return [self._names[interface.SENSOR_TOPICS[p]] for p in ("p1", "p2")]
 
     def kept(self) -> tuple[int, int]:
         """(samples recorded, samples published) of joint_states, from its stamps."""
@@ -299,6 +306,13 @@ class Recorder(Node):
             f"%), dropped: {drops}; {sim:.2f} s simulated in {wall:.2f} s wall "
             f"({sim / max(wall, 1e-9):.2f} x real time); answers re-sent {self.resent}; bag "
             f"{self.bag.path}")
+        silent = [n for n in self._pressure_topics() if n not in self._last]
+        if silent and kept:
+            self.get_logger().info(
+                f"nothing on {' or '.join(silent)}: a rig without "
+                f"{'these pressure sensors' if len(silent) > 1 else 'that pressure sensor'}; "
+                f"jetpipe export leaves {'their columns' if len(silent) > 1 else 'its column'} "
+                f"out")
 
     # -- start-up ---------------------------------------------------------------------------
 

@@ -21,6 +21,16 @@ from jetpipe_ros.fileio import load_yaml
 from jetpipe_ros.package_data import share_file
 
 CONTRACT = "msg_defs/topics.yaml"
+#: The topic of each signal a rig may measure.
+SENSOR_TOPICS = {"y": "joint_states", "p1": "chamber1/pressure", "p2": "chamber2/pressure"}
+#: The values of a node's ``pressure_sensors`` parameter: the chamber pressures a rig measures
+#: beside the position (many have none, or one).
+PRESSURE_SENSORS = ("p1,p2", "p1", "p2", "none")
+
+
+def measured_pressures(setting: str) -> tuple[str, ...]:
+    """The pressure signals (``p1``, ``p2``) of a ``pressure_sensors`` value."""
+    return () if setting == "none" else tuple(setting.split(","))
 
 
 class ContractError(RuntimeError):
