@@ -186,6 +186,28 @@ def test_hardware_with_the_position_alone_is_followed_judged_and_captured(tmp_pa
     assert not (tmp_path / "expected_pressures").exists()
 
 
+@pytest.mark.parametrize("start", [(2.0e5, 8.0e5), (9.0e5, 1.5e5)])
+def test_an_unmeasured_chamber_is_compared_once_its_start_no_longer_matters(start):
+    """Position-only hardware that is the model itself, its chambers starting at 2 and 8 bar
+    (9 and 1.5) where the model assumes 4.2: nothing is compared until the model from
+    atmosphere and from supply hold both chambers within the pressure sensor's 500 Pa, then
+    every judgement is OK. Compared from the start, the first two judgements were ERROR
+    (position gaps of 92 % and 4 %; 155 % and 3 %): the model's chambers were where it
+    assumed, not the hardware's."""
+    p0 = {"chamber.initial_pressure_1": start[0], "chamber.initial_pressure_2": start[1]}
+    rows = hardware(ModelParams().with_values(p0), 12.0)
+    rows[:, 4:6] = np.nan
+    twin = Twin(ModelParams())
+    levels = _levels(twin, rows[:1000])
+    assert twin.settling_since == 0.0 and twin.counters.horizons == 0 and not levels[1]
+    levels.update(_levels(twin, rows[1000:]))
+    assert twin.settling_since is None and 0.2 < twin.counters.unsettled_s < 5.0
+    judged = {second: v for second, v in levels.items() if v}
+    assert judged and min(judged) <= 10
+    for second, signals in judged.items():
+        assert signals["y"][0] == Level.OK, (second, signals)
+
+
 def test_stamps_at_another_rate_than_the_sample_time_are_said():
     """The median stamp interval is the hardware's sample time: a 500 Hz stream fed to a twin
     set to 1 kHz is said (2 ms against 1 ms), and so is a 1.25 ms stream, which the rounding

@@ -313,6 +313,7 @@ class GapMonitor(Node):
                        "late messages": str(self._late_messages), "pauses": str(c.paused),
                        "handling failures": str(self._failures),
                        "paused [s]": f"{c.paused_s:.3f}", "horizons scored": str(c.horizons),
+                       "not compared at start [s]": f"{c.unsettled_s:.3f}",
                        "captures": str(self._captures)})
         interval = twin.interval()
         if interval is not None:
@@ -338,6 +339,10 @@ class GapMonitor(Node):
         else:
             worst = [g for g in twin.judged if g.level == level]
             status.message = f"{level.name}: " + "; ".join(g.describe() for g in worst)
+        if twin.settling_since is not None:
+            status.message = (f"not compared yet: where the chambers no sensor measures started "
+                              f"still matters (since t = {twin.settling_since:.3f} s); "
+                              + status.message)
         if twin.paused_since is not None:
             level = max(level, Level.WARN)
             status.message = (f"comparison paused: measurements missing after "

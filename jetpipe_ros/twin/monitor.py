@@ -16,6 +16,18 @@ Inputs that are not a clean 1 kHz stream never stop it:
   new segment begins with the next sample (a restart and a warm-up), as the diagnosis splits an
   experiment there; :attr:`Counters.paused` and :attr:`Twin.paused_since` say so;
 - stamps at another rate than the set sample time are said (:meth:`Twin.rate_mismatch`).
+
+A chamber pressure the hardware does not measure (NaN at a segment's first sample) is carried by
+the model, from wherever the model's chamber stood. Where the hardware's chamber started, nothing
+measured says, and until that no longer matters the twin's position holds the model's guess,
+not the hardware: on the model's own position-only closed-loop stream, its chambers started
+at 2 and 8 bar where the model assumed 4.2, the first two judgements were ERROR with position
+gaps of 92 % and 4 % (155 % and 3 % from 9 and 1.5 bar). So each segment is also followed by two more copies of the model, its unmeasured chambers
+started at atmosphere and at supply (every start a chamber can have:
+:data:`~jetpipe_ros.diagnosis.prediction.START_RANGE`, as the diagnosis does for a record), and
+nothing is compared until the two hold every unmeasured chamber within the pressure sensor's
+noise (``sensors.pressure_sigma``): from there the model knows that pressure as well as a
+sensor would, whatever the start (:attr:`Twin.settling_since`, :attr:`Counters.unsettled_s`).
 """
 
 from __future__ import annotations
@@ -28,8 +40,8 @@ import numpy as np
 
 from jetpipe_ros.diagnosis.data import SIGNALS, SPLIT_GAP, noise_level
 from jetpipe_ros.diagnosis.noise_floor import SEED
-from jetpipe_ros.diagnosis.prediction import HORIZON, WARMUP
-from jetpipe_ros.model import Actuator, ModelParams
+from jetpipe_ros.diagnosis.prediction import HORIZON, START_RANGE, WARMUP
+from jetpipe_ros.model import Actuator, ModelParams, kernel
 from jetpipe_ros.twin.gap import GapWindow, HorizonScore, Level, SignalGap
 from jetpipe_ros.twin.stepper import OUT_COLUMNS, Stepper
 
@@ -81,6 +93,8 @@ class Counters:
     paused: int = 0  #: gaps long enough to pause the comparison
     paused_s: float = 0.0  #: time missing in those gaps [s]
     horizons: int = 0  #: horizons scored
+    #: time not compared at segment starts, while an unmeasured chamber's start mattered [s]
+    unsettled_s: float = 0.0
 
 
 @dataclass
@@ -125,6 +139,12 @@ class Twin:
         self.counters = Counters()
         self.judged: list[SignalGap] = []
         self.paused_since: float | None = None  #: stamp after which data went missing [s]
+        #: stamp of the segment's first sample while an unmeasured chamber's start still
+        #: matters (nothing is compared), else None [s]
+        self.settling_since: float | None = None
+        self._brackets: list[Stepper] = []  # the model from atmosphere and from supply
+        self._open: list[int] = []  # the unmeasured chambers' state indices
+        self._compare_from = -math.inf  # stamp from which samples are compared [s]
         self.t_last: float | None = None  #: latest stamp used [s]
         self._h = _Horizon(period)
         self._meas = np.empty(3)
@@ -207,7 +227,11 @@ class Twin:
                 self._close()
             h.segment_start = self.stepper.index < 0
             h.start = self.stepper.snapshot()
+            if h.segment_start:
+                self._bracket(t, meas)
         pred, free = self.stepper.step_one(t, u, f, meas)
+        if self._brackets:
+            self._settle(t, u, f, meas)
         i = h.n
         h.t[i], h.u[i], h.f[i] = t, u, f
         h.meas[i], h.pred[i], h.free[i] = meas, pred, free
@@ -217,14 +241,47 @@ class Twin:
             self.paused_since = None
         return pred
 
+    def _bracket(self, t: float, meas: np.ndarray) -> None:
+        """At a segment's first sample (stamp ``t``, measurements ``meas``): start the two
+        copies of the model whose unmeasured chambers bound every start, if there are any."""
+        if self.settling_since is not None and self.t_last is not None:  # cut off by a pause
+            self.counters.unsettled_s += self.t_last - self.settling_since
+            self.settling_since = None
+        self._open = [kernel.P1 + j for j in range(2) if not math.isfinite(meas[1 + j])]
+        self._brackets = []
+        self._compare_from = -math.inf
+        if not self._open:
+            return
+        for p0 in START_RANGE:
+            params = self.params.with_values({"chamber.initial_pressure_1": p0,
+                                              "chamber.initial_pressure_2": p0})
+            self._brackets.append(Stepper(params, self.settings.dt, self.settings.horizon,
+                                          self.settings.warmup))
+        self.settling_since, self._compare_from = t, math.inf
+
+    def _settle(self, t: float, u: float, f: float, meas: np.ndarray) -> None:
+        """Step the two bounding copies through the sample; once they agree on every
+        unmeasured chamber within the pressure sensor's noise, compare from the next sample."""
+        low, high = self._brackets
+        low.step_one(t, u, f, meas)
+        high.step_one(t, u, f, meas)
+        sigma = self.params["sensors.pressure_sigma"]
+        if all(abs(high.act.state[i] - low.act.state[i]) <= sigma for i in self._open):
+            assert self.settling_since is not None
+            self.counters.unsettled_s += t - self.settling_since
+            self._brackets, self.settling_since, self._compare_from = [], None, t
+
     def _close(self) -> None:
         """Score the horizon in progress against its noise floor and judge the window."""
         h = self._h
         n = h.n
         h.n = 0
-        if n == 0 or h.start is None or not h.free[:n].any():
+        if n == 0 or h.start is None:
             return
-        meas, pred, free = h.meas[:n], h.pred[:n], h.free[:n]
+        meas, pred = h.meas[:n], h.pred[:n]
+        free = h.free[:n] & (h.t[:n] > self._compare_from)
+        if not free.any():
+            return
         copies, noise_rel = self._noisy_copies(h, n)
         for j, s in enumerate(SIGNALS):
             x = meas[:, j]
