@@ -8,10 +8,10 @@ and the load held over [t_k, t_k+1); bags without the load joint: the event's co
 row k follows the convention of :func:`jetpipe_ros.model.simulate`. A rig without one or both
 chamber pressure sensors is exported as it was recorded: a pressure topic absent from the bag,
 or without a message in an experiment's time span, leaves that column out of the experiment's
-CSV (a position-only or one-pressure record, docs/data.md), and the export says so. Regulated friction tests are
-marked ``regulated: true`` in ``dataset.yaml``, as ``jetpipe identify`` reads them. A few
-samples lost in transport are interpolated and counted; more than :data:`MAX_MISSING` of an
-experiment is an error.
+CSV (a position-only or one-pressure record, docs/data.md), and the export says so. Regulated
+friction tests are marked ``regulated: true`` in ``dataset.yaml``, as ``jetpipe identify`` reads
+them. A few samples lost in transport are interpolated and counted; more than
+:data:`MAX_MISSING` of an experiment is an error.
 
 A bag that was never closed (its recorder killed: no ``metadata.yaml``, or an MCAP file without
 footer) is read from its MCAP stream (:mod:`jetpipe_ros.bag.recover`), and the export says so:
@@ -190,8 +190,8 @@ def export_bag(bag: str | Path, out_dir: str | Path, overwrite: bool = False,
     """Write the complete experiments of campaign bag ``bag`` as a dataset in ``out_dir``.
 
     Each CSV has ``t,u,y,p1,p2,v,f_load`` (without the pressures the rig did not measure);
-    ``dataset.yaml`` has piston, load_force, role,
-    kind and the number of interpolated samples (``missing_samples``). Written atomically.
+    ``dataset.yaml`` has piston, load_force, role, kind and the number of interpolated samples
+    (``missing_samples``). Written atomically.
     """
     bag = Path(bag)
     check_target(out_dir, overwrite, protect=[bag])

@@ -22,12 +22,13 @@ the model, from wherever the model's chamber stood. Where the hardware's chamber
 measured says, and until that no longer matters the twin's position holds the model's guess,
 not the hardware: on the model's own position-only closed-loop stream, its chambers started
 at 2 and 8 bar where the model assumed 4.2, the first two judgements were ERROR with position
-gaps of 92 % and 4 % (155 % and 3 % from 9 and 1.5 bar). So each segment is also followed by two more copies of the model, its unmeasured chambers
-started at atmosphere and at supply (every start a chamber can have:
-:data:`~jetpipe_ros.diagnosis.prediction.START_RANGE`, as the diagnosis does for a record), and
-nothing is compared until the two hold every unmeasured chamber within the pressure sensor's
-noise (``sensors.pressure_sigma``): from there the model knows that pressure as well as a
-sensor would, whatever the start (:attr:`Twin.settling_since`, :attr:`Counters.unsettled_s`).
+gaps of 92 % and 4 % (155 % and 3 % from 9 and 1.5 bar). So each segment is also followed by
+two more copies of the model, its unmeasured chambers started at atmosphere and at supply
+(every start a chamber can have: :data:`~jetpipe_ros.diagnosis.prediction.START_RANGE`, as the
+diagnosis does for a record), and nothing is compared until the two hold every unmeasured
+chamber within the pressure sensor's noise (``sensors.pressure_sigma``): from there the model
+knows that pressure as well as a sensor would, whatever the start (:attr:`Twin.settling_since`,
+:attr:`Counters.unsettled_s`).
 """
 
 from __future__ import annotations
