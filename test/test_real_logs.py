@@ -358,6 +358,35 @@ def test_a_replayed_chamber_is_compared_once_its_start_no_longer_matters(tmp_pat
             assert np.abs(high.signal(s) - low.signal(s))[cut:].max() <= sigma
 
 
+def test_the_report_draws_which_samples_were_compared(tmp_path):
+    """A position-only logger that lost 1 % of its rows: the report's coverage chart draws, per
+    experiment, the start no comparison uses (where the replayed chambers' start still
+    matters) and, after it, exactly the rows the logger lost."""
+    from jetpipe_ros.diagnosis.prediction import unknown_start, without_unknown_start
+    from jetpipe_ros.workflows.report import coverage_figure, not_compared
+
+    nominal = ModelParams()
+    root = record(tmp_path / "data", nominal)
+    lost_total = relog(root, lose=0.01, drop=("p1", "p2"))
+    dataset = read_dataset(root)
+    valid = {exp.name: np.ones(exp.t.size, bool) if exp.valid is None else exp.valid
+             for _, exp in dataset}
+    prepared = prepare(dataset)
+    kept = without_unknown_start(prepared, nominal)
+    drawn = 0
+    for before, rec in zip(prepared.records, kept.records, strict=True):
+        first, lost = not_compared(rec)
+        cut = unknown_start(nominal, before, prepared.dt)
+        filled = np.flatnonzero(~valid[rec.name])
+        assert first >= cut and set(range(cut, first)) <= set(filled), rec.name
+        assert lost.tolist() == filled[filled > first].tolist(), rec.name
+        drawn += np.count_nonzero(filled < first)  # lost inside the start: drawn as the start
+        drawn += lost.size
+    assert drawn == lost_total - sum(np.count_nonzero(~v) for name, v in valid.items()
+                                     if name not in {r.name for r in kept.records})
+    assert coverage_figure(kept).startswith("<img")
+
+
 @pytest.mark.parametrize("declared", ["closed_loop", None, "open_loop"])
 def test_the_frequency_response_of_the_position_alone_leaves_the_closed_loop_out(
         nominal_record, tmp_path, declared):

@@ -17,7 +17,7 @@ import yaml
 
 from jetpipe_ros.diagnosis.calibration import NAME as CALIBRATION_GROUP
 from jetpipe_ros.diagnosis.collinearity import ADDED, imitated_effects, telling
-from jetpipe_ros.diagnosis.data import Prepared
+from jetpipe_ros.diagnosis.data import Prepared, Record
 from jetpipe_ros.diagnosis.diagnose import NOT_RULED_OUT
 from jetpipe_ros.diagnosis.nuisance import words as nuisance_words
 from jetpipe_ros.diagnosis.separation import words as stand_in_words
@@ -186,6 +186,60 @@ def overlay_figure(prepared: Prepared, preds: dict, result: dict, augmented: boo
     axes[-1].plot(rec.t, rec.u, color="#2ca02c", lw=0.8)
     axes[-1].set_ylabel("command [V]")
     axes[-1].set_xlabel("time [s]")
+    return png_img(fig)
+
+
+#: The coverage chart's samples: fitted on, judged on, left out of every comparison, and the
+#: rows a logger lost among them (drawn as ticks: one row is too narrow for a bar).
+COVERAGE = {"train": ("#1f77b4", "training"), "holdout": ("#ff7f0e", "held out"),
+            "neither": ("#d9d9d9", "not compared"),
+            "lost": ("#d62728", "not compared: a row the logger lost")}
+
+
+def not_compared(rec: Record) -> tuple[int, np.ndarray]:
+    """The samples of ``rec`` no comparison uses: its first compared sample (before it, the
+    start: while an unmeasured chamber's start still matters,
+    :func:`~jetpipe_ros.diagnosis.prediction.without_unknown_start`, or rows lost there), and
+    the rows left out after it, the rows a logger lost (the masks hold measured rows only)."""
+    compared = rec.train | rec.holdout
+    if not compared.any():
+        return compared.size, np.zeros(0, dtype=int)
+    first = int(np.argmax(compared))
+    return first, first + np.flatnonzero(~compared[first:])
+
+
+def coverage_figure(prepared: Prepared) -> str:
+    """Which samples of each experiment the diagnosis compared, training or held out, and which
+    none (:func:`not_compared`). An experiment split at a long gap is two lanes."""
+    plt = pyplot()
+    from matplotlib.patches import Patch  # after pyplot(): matplotlib is imported on first use
+    records = prepared.records
+    if not records:
+        return ""
+    fig, ax = plt.subplots(figsize=(10, 0.28 * len(records) + 1.1))
+    for lane, rec in enumerate(records):
+        kind = np.where(rec.train, 0, np.where(rec.holdout, 1, 2))
+        edges = np.flatnonzero(np.diff(kind)) + 1
+        starts, ends = np.r_[0, edges], np.r_[edges, kind.size]
+        dt = prepared.dt
+        for name, k in (("train", 0), ("holdout", 1), ("neither", 2)):
+            runs = [(rec.t[a], (b - a) * dt) for a, b in zip(starts, ends) if kind[a] == k]
+            if runs:
+                ax.broken_barh(runs, (lane - 0.38, 0.76), color=COVERAGE[name][0], lw=0)
+        compared = rec.train | rec.holdout
+        _, lost = not_compared(rec)
+        if lost.size:
+            ax.vlines(rec.t[lost], lane - 0.38, lane + 0.38, color=COVERAGE["lost"][0], lw=0.6)
+        ax.text(rec.t[-1] + dt, lane, f" {100 * compared.mean():.0f} %", va="center",
+                fontsize=7)
+    ax.set_yticks(range(len(records)), [r.name for r in records], fontsize=7)
+    ax.set_ylim(len(records) - 0.5, -0.5)
+    ax.set_xlabel("time in the experiment [s] (right: share of its samples compared)")
+    shown = [k for k in COVERAGE if k != "lost" or any(not_compared(r)[1].size
+                                                         for r in records)]
+    ax.legend(handles=[Patch(color=COVERAGE[k][0], label=COVERAGE[k][1]) for k in shown],
+              fontsize=8, loc="upper left", bbox_to_anchor=(1.04, 1.0))
+    fig.tight_layout()
     return png_img(fig)
 
 
@@ -628,6 +682,12 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
         if "time_base" in data else "",
         "".join(f"<p>Not judged: <code>{html.escape(e)}</code>, {html.escape(why)}.</p>"
                 for e, why in data.get("cannot_judge", {}).items()),
+        "<h3>Which samples were compared</h3>",
+        "<p>Each experiment as the diagnosis read it: the samples the models were fitted on, "
+        "those they were judged on, and those no comparison uses (rows the logger lost, the "
+        "first seconds while a chamber no sensor measured still depends on where it started, "
+        "each experiment's first sample). An experiment split at a long gap is two lanes.</p>",
+        coverage_figure(prepared),
         _table(exp_rows, ["experiment", "piston", "train [s]", "held out [s]"]),
         "</body></html>",
     ]
