@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import yaml
 
+from jetpipe_ros.dataset import grouped_notes
 from jetpipe_ros.diagnosis.calibration import NAME as CALIBRATION_GROUP
 from jetpipe_ros.diagnosis.collinearity import ADDED, imitated_effects, telling
 from jetpipe_ros.diagnosis.data import Prepared, Record
@@ -454,6 +455,25 @@ def _what_would_tell(result: dict, effects: list[str]) -> str:
     return "; ".join(words) + "."
 
 
+#: Longest list of corrections shown open; a longer one (a logger that lost rows in every file
+#: says so file by file) is folded, the chart of compared samples drawing the same at a glance.
+OPEN_CORRECTIONS = 6
+
+
+def _corrections(data: dict) -> str:
+    """The time base as read, then what the reader corrected, the same words of several files
+    said once (:func:`~jetpipe_ros.dataset.grouped_notes`), folded when there are many."""
+    base = data["time_base"]
+    notes = grouped_notes(data.get("corrections", []))
+    items = "".join(f"<li>{html.escape(c)}</li>" for c in notes)
+    out = (f"<p>Time base ({html.escape(base['reading'])}): "
+           f"{html.escape(base['explanation'])}.</p>")
+    if len(notes) > OPEN_CORRECTIONS:
+        return (out + f"<details><summary>{len(notes)} corrections of the records, file by "
+                f"file</summary><ul>{items}</ul></details>")
+    return out + (f"<ul>{items}</ul>" if notes else "")
+
+
 def _capital(words: str) -> str:
     """``words`` with a capital first letter, unless they start with a name of the package's
     vocabulary (``friction_dynamics:lugre``), which keeps its spelling."""
@@ -675,18 +695,15 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
         f"ms. Signals measured: {', '.join(sensors)}. Estimated sensor noise: "
         f"{', '.join(_noise_words(s, data['noise'][s]) for s in sensors)}.</p>",
         "".join(f"<p>Note: {html.escape(n)}.</p>" for n in data["notes"]),
-        "<h3>What the diagnosis corrected in the records</h3>",
-        "<ul>" + "".join(f"<li>{html.escape(c)}</li>" for c in data.get("corrections", []))
-        + f"<li>time base ({html.escape(data['time_base']['reading'])}): "
-          f"{html.escape(data['time_base']['explanation'])}</li></ul>"
+        "<h3>What the diagnosis corrected in the records</h3>" + _corrections(data)
         if "time_base" in data else "",
         "".join(f"<p>Not judged: <code>{html.escape(e)}</code>, {html.escape(why)}.</p>"
                 for e, why in data.get("cannot_judge", {}).items()),
         "<h3>Which samples were compared</h3>",
         "<p>Each experiment as the diagnosis read it: the samples the models were fitted on, "
         "those they were judged on, and those no comparison uses (rows the logger lost, the "
-        "first seconds while a chamber no sensor measured still depends on where it started, "
-        "each experiment's first sample). An experiment split at a long gap is two lanes.</p>",
+        "first seconds while a chamber no sensor measured still depends on where it started). "
+        "An experiment split at a long gap is two lanes.</p>",
         coverage_figure(prepared),
         _table(exp_rows, ["experiment", "piston", "train [s]", "held out [s]"]),
         "</body></html>",
