@@ -85,8 +85,8 @@ def words(report: dict) -> str | None:
         return None
     knobs = ", ".join(dict.fromkeys(k for d in found for k in d["knobs"]))
     return (f"the training records leave {len(found)} direction{'s' if len(found) > 1 else ''}"
-            f" of the calibration knobs free ({knobs}) that the held-out predictions depend on "
-            f"(one standard deviation moves them by up to "
+            f" of the calibration knobs free (mostly {knobs}) that the held-out predictions "
+            f"depend on (one standard deviation moves them by up to "
             f"{found[0]['heldout_over_noise']:.0f} times the sensors' noise): fitted on all "
             f"records, alike in every model compared")
 
