@@ -109,6 +109,7 @@ def write_bag(path: Path, ns: str = "/fb", close: bool = True,
 
     data: dict[str, dict[str, np.ndarray]] = {}
     k = 0
+    bag.event(0, event="campaign", source="test", experiments=len(EXPERIMENTS))
     for name, locked, n in EXPERIMENTS:
         start = k
         rng = np.random.default_rng(n + 1000 * seed)
@@ -165,6 +166,63 @@ def test_a_bag_without_pressure_topics_exports_the_position_alone(tmp_path):
         np.testing.assert_allclose(x.y, data[entry.name]["y"], atol=1e-12)
         np.testing.assert_allclose(x.u, data[entry.name]["u"])
     assert "p1 and p2 not measured (no message on the topic) in every experiment" in said[-1]
+
+
+def test_a_recording_without_campaign_events_exports_as_one_record(tmp_path):
+    """A bag of a driver recorded with ``mode: record`` (no campaign events): stamps jittered by
+    up to 0.2 ms, 30 joint_states samples lost, no chamber 2 sensor. One experiment: a row per
+    joint_states stamp with the command applied after it (the voltage_applied stamped next,
+    found where the next sample was lost too), the lost samples left for the dataset reader,
+    which snaps the stamps and fills those rows; p2 not measured."""
+    store = get_typestore(TYPESTORE)
+    topics = {f"/rig/{t.name}": t.type for t in interface.load_topics().values()
+              if t.name != "chamber2/pressure" and not t.name.startswith("/")}
+    bag = BagWriter(tmp_path / "bag", topics)
+    js_t, fp_t = store.types["sensor_msgs/msg/JointState"], store.types[
+        "sensor_msgs/msg/FluidPressure"]
+    header_t, time_t = store.types["std_msgs/msg/Header"], store.types[
+        "builtin_interfaces/msg/Time"]
+    rng = np.random.default_rng(3)
+    n = 3000
+    stamps = 5_000_000_000 + 1_000_000 * np.arange(n) + rng.integers(-200_000, 200_000, n)
+    lost = set(rng.choice(np.arange(1, n - 2), 30, replace=False).tolist())
+    u = np.round(rng.uniform(-1.0, 1.0, n), 3)  # u[k]: applied over [t_k, t_k+1)
+    y, p1 = 0.01 * np.sin(np.arange(n) / 80.0), 4e5 + 1e5 * rng.random(n)
+
+    def header(ns: int):
+        return header_t(stamp=time_t(sec=int(ns) // 10**9, nanosec=int(ns) % 10**9),
+                        frame_id="actuator")
+
+    for k, ns in enumerate(stamps):
+        put = lambda topic, msg, kind: bag.write(f"/rig/{topic}", int(ns),  # noqa: E731
+                                                 store.serialize_cdr(msg, kind))
+        if k not in lost:
+            put("joint_states", js_t(header=header(ns), name=["piston"], position=np.array(
+                [y[k]]), velocity=np.array([0.0]), effort=np.array([0.0])),
+                "sensor_msgs/msg/JointState")
+        put("chamber1/pressure", fp_t(header=header(ns), fluid_pressure=p1[k], variance=0.0),
+            "sensor_msgs/msg/FluidPressure")
+        if k > 0:  # the command applied over the sample that ends here
+            put("voltage_applied", js_t(header=header(ns), name=["valve", "load"],
+                                        position=np.array([u[k - 1], math.nan]),
+                                        velocity=np.array([], dtype=float),
+                                        effort=np.array([math.nan, 0.0])),
+                "sensor_msgs/msg/JointState")
+    bag.close()
+    said = []
+    ds = read_dataset(export_bag(tmp_path / "bag", tmp_path / "out", progress=said.append))
+    ((entry, exp),) = list(ds)
+    assert entry.name == "bag" and not entry.locked and entry.role is None
+    assert entry.extra["lost_samples"] == len(lost)  # the last sample, no command after it,
+    # is not in the span
+    assert exp.t.size == n - 1 and np.allclose(np.diff(exp.t), 1e-3)  # snapped, filled
+    measured = np.flatnonzero(exp.valid)
+    assert sorted(set(range(n - 1)) - set(measured.tolist())) == sorted(lost)
+    assert np.array_equal(exp.u[measured], u[measured])
+    np.testing.assert_allclose(exp.y[measured], y[measured], atol=1e-12)
+    np.testing.assert_allclose(exp.p1[measured], p1[measured], atol=1e-3)  # %.9g
+    assert exp.p2 is None
+    assert "no campaign events" in said[0] and "p2 not measured" in said[1]
 
 
 # -- item 2: a bag never closed, cut at any byte -----------------------------------------------

@@ -92,9 +92,12 @@ def _plan(tmp_path, text: str):
 
 
 def _events(bag) -> list[dict]:
+    """The experiment events of a closed bag (after the campaign's own, at its first sample)."""
     with Reader(bag) as reader:
         conns = [c for c in reader.connections if c.topic == EVENTS_TOPIC]
-        return [json.loads(raw[8:-1].decode()) for _, _, raw in reader.messages(conns)]
+        events = [json.loads(raw[8:-1].decode()) for _, _, raw in reader.messages(conns)]
+    assert events[0]["event"] == "campaign"
+    return [e for e in events if e["event"] == "experiment"]
 
 
 def _streamed_events(bag) -> list[dict]:

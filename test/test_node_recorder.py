@@ -226,6 +226,8 @@ def test_sigint_leaves_a_readable_bag(launch, tmp_path, composed):
                   if c.topic == EVENTS_TOPIC]
         js = next(c for c in reader.connections if c.topic.endswith("/joint_states"))
         assert js.msgcount > first  # the first charge/discharge and more
+    assert events[0]["event"] == "campaign"  # what marks the bag as a campaign's
+    events = events[1:]
     assert events[0]["name"] == "charge_0p29V" and events[0]["complete"]
     assert events[-1]["name"] == "charge_0p57V" and not events[-1]["complete"]
     messages = []
@@ -271,6 +273,15 @@ def test_record_mode_keeps_a_real_time_stream(launch, tmp_path):
     # here only a recorder that loses a tenth is broken: on Jazzy, after the node tests before
     # it, one run kept 94.9 % (the test alone passed twice right after, as it does on Kilted).
     assert stamps.size / (expected - min(dropped, expected // 2)) > 0.9
+    # No campaign: the export writes the recording as one experiment, a row per sample with
+    # the command applied after it (0 V here: nothing commands the simulator).
+    said = []
+    ((entry, exp),) = list(read_dataset(export_bag(bag, tmp_path / "data", progress=said.append)))
+    assert "no campaign events" in said[0] and entry.name == "rt" and entry.role is None
+    rows = np.count_nonzero(exp.valid) if exp.valid is not None else exp.t.size
+    assert rows >= stamps.size - 2 - entry.extra["lost_samples"] and rows > 1000
+    assert np.all(exp.u == 0.0) and np.allclose(np.diff(exp.t), 1e-3)
+    assert exp.p1 is not None and exp.p2 is not None and np.all(np.isfinite(exp.y))
 
 
 #: A locked charge held out and a free square: short, one of each rig state.

@@ -13,6 +13,13 @@ friction tests are marked ``regulated: true`` in ``dataset.yaml``, as ``jetpipe 
 them. A few samples lost in transport are interpolated and counted; more than
 :data:`MAX_MISSING` of an experiment is an error.
 
+A bag without campaign events (``id_recorder``'s ``mode: record`` beside a driver, or any
+recorder of the contract's topics; a campaign's bag holds one from its first sample) is one
+recording: it is written as one experiment, a row at
+each ``joint_states`` stamp as the driver stamped it, the command from the ``voltage_applied``
+that follows it; a stamp with no partner message in reach is a lost row, left out for the
+dataset reader to fill, as it does any logger's (:mod:`jetpipe_ros.dataset.timebase`).
+
 A bag that was never closed (its recorder killed: no ``metadata.yaml``, or an MCAP file without
 footer) is read from its MCAP stream (:mod:`jetpipe_ros.bag.recover`), and the export says so:
 the experiments whose end the recorder marked before it died are exported as usual.
@@ -121,12 +128,8 @@ def _suffix(topic: str) -> str | None:
 
 def _topics(bag: Path, names: list[str]) -> dict[str, str]:
     """{topic: signal suffix} of the bag's topics ``names``; BagError if a required one is
-    missing, one is ambiguous or there are no campaign events."""
-    topics = {t: s for s in SIGNALS if (t := _find(bag, names, s)) is not None}
-    if EVENTS_TOPIC not in names:
-        raise BagError(f"{bag}: no {EVENTS_TOPIC} topic: not recorded by id_recorder "
-                       f"running a campaign")
-    return topics
+    missing or one is ambiguous."""
+    return {t: s for s in SIGNALS if (t := _find(bag, names, s)) is not None}
 
 
 def _decode(bag: Path, names: list[str], messages: Iterator[tuple[str, str, bytes]]
@@ -197,6 +200,11 @@ def export_bag(bag: str | Path, out_dir: str | Path, overwrite: bool = False,
     check_target(out_dir, overwrite, protect=[bag])
     signals, events = read_signals(bag, progress)
     experiments = [e for e in events if e.get("event") == "experiment"]
+    if not events:
+        progress(f"{bag}: no campaign events (recorded with mode: record, or by another "
+                 f"recorder): the recording is written as one experiment")
+        return write_dataset(out_dir, [_recording(bag, signals, progress)],
+                             overwrite=overwrite, protect=[bag])
     complete = [e for e in experiments if e.get("complete")]
     for e in experiments:
         if not e.get("complete"):
@@ -242,6 +250,70 @@ def export_bag(bag: str | Path, out_dir: str | Path, overwrite: bool = False,
         progress(f"{lacking} not measured (no message on the topic) in {where}: left out of "
                  f"the CSVs, read as a record without that sensor")
     return write_dataset(out_dir, out, overwrite=overwrite, protect=[bag])
+
+
+def _recording(bag: Path, signals: dict[str, dict[str, np.ndarray]],
+               progress: Callable[[str], None]) -> tuple[Entry, dict[str, np.ndarray]]:
+    """A bag without campaign events as one experiment: a row at each ``joint_states`` stamp
+    t_k (t from the first, as stamped: jitter and lost samples are the dataset reader's to
+    snap and fill), u_k and the load from the ``voltage_applied`` stamped next (the command
+    applied over [t_k, t_k+1)), each pressure from its message stamped nearest t_k. The sample
+    time is the median stamp interval; a partner message further than half of it from where it
+    belongs makes the row a lost one (left out, counted). The piston is taken as free and no
+    role is set (the diagnosis then holds out the last 30 %): ``dataset.yaml`` says otherwise
+    where the user knows better."""
+    js, va = signals["joint_states"], signals["voltage_applied"]
+    t = js["t"]
+    if t.size < 3 or va["t"].size < 2:
+        raise BagError(f"{bag}: too few joint_states ({t.size}) or voltage_applied "
+                       f"({va['t'].size}) messages to make a record of")
+    # The sample time: each interval counted in samples of the median interval, then the slope
+    # of the stamps against those sample numbers (the median of jittered intervals is off by
+    # microseconds, which over thousands of samples would miscount the lost ones).
+    gaps = np.diff(t)
+    step = np.r_[0.0, np.cumsum(np.maximum(np.round(gaps / np.median(gaps)), 1.0))]
+    dt = int(round(np.polyfit(step, (t - t[0]).astype(float), 1)[0]))
+    keep = np.ones(t.size, dtype=bool)
+    cols: dict[str, np.ndarray] = {}
+
+    def partner(sig: dict[str, np.ndarray], at: np.ndarray) -> np.ndarray:
+        """Index of ``sig``'s message stamped nearest each of ``at``; -1 beyond dt / 2."""
+        j = np.clip(np.searchsorted(sig["t"], at), 1, sig["t"].size - 1)
+        j = np.where(np.abs(sig["t"][j - 1] - at) <= np.abs(sig["t"][j] - at), j - 1, j)
+        return np.where(np.abs(sig["t"][j] - at) <= dt // 2, j, -1)
+
+    # Where the command applied after each sample is stamped: the next sample's stamp, or one
+    # sample time on where the next sample was lost.
+    nxt = np.r_[t[1:], t[-1] + dt]
+    nxt = np.where(nxt - t <= dt + dt // 2, nxt, t + dt)
+    command = partner(va, nxt)
+    keep &= command >= 0
+    keep[-1] = False  # the command after the last sample is not in the bag
+    pressures = {key: partner(signals[suffix], t) for key, suffix in OPTIONAL.items()
+                 if _within(signals.get(suffix), t) and signals[suffix]["t"].size > 1}
+    for j in pressures.values():
+        keep &= j >= 0
+    rows = np.flatnonzero(keep)
+    if rows.size < 3:
+        raise BagError(f"{bag}: no joint_states sample has its voltage_applied and pressures "
+                       f"within {dt / 2e6:g} ms: not a stream of the topic contract")
+    cols["t"] = (t[rows] - t[rows[0]]) * 1e-9
+    cols["u"] = va["u"][command[rows]]
+    cols["y"], cols["v"] = js["y"][rows], js["v"][rows]
+    for key, j in pressures.items():
+        cols[key] = signals[OPTIONAL[key]]["p"][j[rows]]
+    load = va["f_load"][command[rows]]
+    if np.all(np.isfinite(load)):
+        cols["f_load"] = load
+    lacking = [k for k in OPTIONAL if k not in pressures]
+    span = t[rows[-1]] - t[rows[0]]
+    lost = int(round(span / dt)) + 1 - rows.size  # rows of the span the reader will fill
+    progress(f"{bag.name}: {rows.size} rows at {dt / 1e6:g} ms ({span * 1e-9:.1f} s); {lost} "
+             f"lost (missing from the stream, or without their partner messages)"
+             + (f"; {' and '.join(lacking)} not measured (no message on the topic)"
+                if lacking else "") + "; piston taken as free, no role set: say otherwise in "
+             "dataset.yaml")
+    return Entry(f"{bag.name}.csv", extra={"lost_samples": lost}), cols
 
 
 def _run(args: argparse.Namespace) -> int:

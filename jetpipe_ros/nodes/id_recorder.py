@@ -18,7 +18,8 @@ the regulated pressures and the piston's place, set atomically) while the simula
 phase with a load signal (the friction test's releasing load) publishes each sample's
 ``load_force`` just before its ``voltage_cmd``; the simulator applies them in arrival order and
 reports the load it applied on ``voltage_applied``, which the export reads. Each experiment is
-marked on ``/id_recorder/events`` so ``jetpipe export BAG DATASET_DIR`` can cut the dataset.
+marked on ``/id_recorder/events`` (after a ``campaign`` event at its first sample) so
+``jetpipe export BAG DATASET_DIR`` can cut the dataset.
 The node exits when the campaign is done. ``mode: record`` only records, until stopped.
 
 SIGINT/SIGTERM close the bag cleanly: every message received up to the signal stays readable.
@@ -401,6 +402,9 @@ class Recorder(Node):
                 return
             self._start_ns = stamp
             self._sent = -1
+            if self._index == 0:  # marks a campaign's bag, even one killed before its first end
+                self.bag.event(stamp, event="campaign", source=str(self.campaign.source),
+                               experiments=len(self.campaign.experiments))
             if phase.experiment is not None:
                 self.get_logger().info(f"experiment {phase.label} ({phase.samples} samples)")
         row = (stamp - self._start_ns) // self._dt_ns
