@@ -327,7 +327,9 @@ def add_command(subparsers) -> None:
     p = subparsers.add_parser(
         "export", help="convert an id_recorder campaign bag into a dataset (docs/data.md)",
         description="Read a rosbag2 (MCAP) bag recorded by id_recorder and write one CSV per "
-                    "complete experiment (t,u,y,p1,p2,v,f_load) and dataset.yaml.")
+                    "complete experiment (t,u,y,p1,p2,v,f_load; no column for a pressure the "
+                    "rig did not publish) and dataset.yaml; a bag without campaign events "
+                    "(mode: record, or another recorder of the topics) is one experiment.")
     p.add_argument("bag", help="bag directory (holds metadata.yaml and the .mcap file; a bag "
                                "whose recorder was killed is recovered from the .mcap file)")
     p.add_argument("dataset_dir", help="dataset directory to create")
