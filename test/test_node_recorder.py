@@ -284,6 +284,26 @@ def test_record_mode_keeps_a_real_time_stream(launch, tmp_path):
     assert exp.p1 is not None and exp.p2 is not None and np.all(np.isfinite(exp.y))
 
 
+def test_record_mode_at_another_rate_says_so_and_exports_at_it(launch, tmp_path):
+    """A driver at 500 Hz (the simulator's sample time 2 ms) recorded with the default
+    ``sample_time`` of 1 ms: the report counts every other sample as dropped on its 1 ms grid
+    and says so, naming the parameter to set; the export takes the 2 ms from the stamps."""
+    sim = launch(["-m", "jetpipe_ros.nodes.actuator_sim", "--ros-args", "-r", "__ns:=/half",
+                  "-p", "report_period:=0.0", "-p", "integration.sample_time:=0.002"])
+    sim.wait_for("started:", STARTUP)
+    bag = tmp_path / "half"
+    rec = launch(["-m", "jetpipe_ros.nodes.id_recorder", "--ros-args", "-r", "__ns:=/half",
+                  "-p", "mode:=record", "-p", f"bag:={bag}"])
+    rec.wait_for("started: record only", STARTUP)
+    time.sleep(3.0)
+    rec.popen.send_signal(signal.SIGTERM)
+    assert rec.popen.wait(60.0) == 0, rec.output
+    assert re.search(r"joint_states came every 2 ms, but sample_time is 1 ms: .* set "
+                     r"sample_time:=0\.002", rec.output), rec.output
+    ((_, exp),) = list(read_dataset(export_bag(bag, tmp_path / "data", progress=print)))
+    assert np.allclose(np.diff(exp.t), 2e-3) and exp.t.size > 500
+
+
 #: A locked charge held out and a free square: short, one of each rig state.
 ONE_PRESSURE_PLAN = """
 settle: {center: 0.5, rest: 0.3}
