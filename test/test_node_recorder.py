@@ -243,23 +243,31 @@ def test_composed_campaign_names_the_node_of_a_bad_parameter(launch, tmp_path):
     assert "not started" in rec.output and not (tmp_path / "bag").exists()
 
 
+def _recorded(launch, bag, seconds: float, *sim_args: str) -> tuple[object, object]:
+    """A real-time simulator (``sim_args`` added) recorded by id_recorder in ``mode: record``
+    for ``seconds`` into ``bag``, stopped with SIGTERM: (simulator, recorder)."""
+    ns = f"__ns:=/{bag.name}"
+    sim = launch(["-m", "jetpipe_ros.nodes.actuator_sim", "--ros-args", "-r", ns,
+                  "-p", "report_period:=0.0", *sim_args])
+    sim.wait_for("started:", STARTUP)
+    rec = launch(["-m", "jetpipe_ros.nodes.id_recorder", "--ros-args", "-r", ns,
+                  "-p", "mode:=record", "-p", f"bag:={bag}"])
+    rec.wait_for("started: record only", STARTUP)
+    time.sleep(seconds)
+    rec.popen.send_signal(signal.SIGTERM)
+    # Closing takes well under a second alone; 20 s were once not enough beside two self-check
+    # workers (the test alone passed right after): a bound for a hang, not a speed.
+    assert rec.popen.wait(60.0) == 0, rec.output
+    return sim, rec
+
+
 def test_record_mode_keeps_a_real_time_stream(launch, tmp_path):
     """Of the samples the simulator published, the recorder keeps nearly all, and says how many.
     The simulator catches up stalls of up to 1 s (max_catch_up) and reports what it had to drop
     beyond (its final report): those gaps in the stamps are not the recorder's (a loaded machine
     makes some)."""
-    sim = launch(["-m", "jetpipe_ros.nodes.actuator_sim", "--ros-args", "-r", "__ns:=/rt",
-                  "-p", "report_period:=0.0", "-p", "max_catch_up:=1000"])
-    sim.wait_for("started:", STARTUP)
     bag = tmp_path / "rt"
-    rec = launch(["-m", "jetpipe_ros.nodes.id_recorder", "--ros-args", "-r", "__ns:=/rt",
-                  "-p", "mode:=record", "-p", f"bag:={bag}"])
-    rec.wait_for("started: record only", STARTUP)
-    time.sleep(5.0)
-    rec.popen.send_signal(signal.SIGTERM)
-    # Closing takes well under a second alone; 20 s were once not enough beside two self-check
-    # workers (the test alone passed right after): a bound for a hang, not a speed.
-    assert rec.popen.wait(60.0) == 0, rec.output
+    sim, rec = _recorded(launch, bag, 5.0, "-p", "max_catch_up:=1000")
     stamps = _joint_stamps(bag)
     assert stamps.size > 1000  # 5 s at 1 kHz, less the discovery (slow on a loaded machine)
     expected = (stamps[-1] - stamps[0]) // 1_000_000 + 1
@@ -288,19 +296,11 @@ def test_record_mode_at_another_rate_says_so_and_exports_at_it(launch, tmp_path)
     """A driver at 500 Hz (the simulator's sample time 2 ms) recorded with the default
     ``sample_time`` of 1 ms: the report counts every other sample as dropped on its 1 ms grid
     and says so, naming the parameter to set; the export takes the 2 ms from the stamps."""
-    sim = launch(["-m", "jetpipe_ros.nodes.actuator_sim", "--ros-args", "-r", "__ns:=/half",
-                  "-p", "report_period:=0.0", "-p", "integration.sample_time:=0.002"])
-    sim.wait_for("started:", STARTUP)
     bag = tmp_path / "half"
-    rec = launch(["-m", "jetpipe_ros.nodes.id_recorder", "--ros-args", "-r", "__ns:=/half",
-                  "-p", "mode:=record", "-p", f"bag:={bag}"])
-    rec.wait_for("started: record only", STARTUP)
-    time.sleep(3.0)
-    rec.popen.send_signal(signal.SIGTERM)
-    assert rec.popen.wait(60.0) == 0, rec.output
+    _, rec = _recorded(launch, bag, 3.0, "-p", "integration.sample_time:=0.002")
     assert re.search(r"joint_states came every 2 ms, but sample_time is 1 ms: .* set "
                      r"sample_time:=0\.002", rec.output), rec.output
-    ((_, exp),) = list(read_dataset(export_bag(bag, tmp_path / "data", progress=print)))
+    ((_, exp),) = list(read_dataset(export_bag(bag, tmp_path / "data", progress=lambda _: None)))
     assert np.allclose(np.diff(exp.t), 2e-3) and exp.t.size > 500
 
 
