@@ -4,7 +4,8 @@ Top to bottom: a plain-language summary; the recalibrated parameters against nom
 of candidates with their held-out gap;
 model against data on the held-out experiment with the largest gap; the gap by regime; the
 frequency response of data, nominal and augmented models; then the numbers (signals,
-subsystems, the paper's metrics, what the experiments cannot show, how the data were split).
+subsystems, the paper's metrics, what the experiments cannot show, how the data were split and
+corrected, and a chart of which samples of each experiment were compared).
 """
 
 from __future__ import annotations
@@ -218,11 +219,11 @@ def coverage_figure(prepared: Prepared) -> str:
     if not records:
         return ""
     fig, ax = plt.subplots(figsize=(10, 0.28 * len(records) + 1.1))
+    dt = prepared.dt
     for lane, rec in enumerate(records):
         kind = np.where(rec.train, 0, np.where(rec.holdout, 1, 2))
         edges = np.flatnonzero(np.diff(kind)) + 1
         starts, ends = np.r_[0, edges], np.r_[edges, kind.size]
-        dt = prepared.dt
         for name, k in (("train", 0), ("holdout", 1), ("neither", 2)):
             runs = [(rec.t[a], (b - a) * dt) for a, b in zip(starts, ends) if kind[a] == k]
             if runs:
