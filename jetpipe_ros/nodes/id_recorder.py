@@ -295,6 +295,7 @@ class Recorder(Node):
         return all(self._last.get(n) == self._now_ns for n in streams)
 
     def _pressure_topics(self) -> list[str]:
+        """The chamber pressure topics, resolved in the node's namespace."""
         return [self._names[interface.SENSOR_TOPICS[p]] for p in ("p1", "p2")]
 
     def kept(self) -> tuple[int, int]:
