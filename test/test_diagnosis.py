@@ -392,3 +392,12 @@ def test_corrections_said_of_many_files_are_printed_once():
         "a.csv: 3 rows missing", "holdout as marked", "b.csv: 3 rows missing"]
     assert grouped(notes) == ["5 files (a.csv, b.csv, c.csv, ...): y: mm -> m (x 0.001)",
                               "2 files (a.csv, b.csv): 3 rows missing", "holdout as marked"]
+    # Alike but for their numbers: one line, each number that differs as its range (a name's
+    # digit, p1 against p2, is not a number).
+    notes = ["a.csv: jitter (RMS 0.171 ms, max 0.3 ms): snapped",
+             "b.csv: jitter (RMS 0.176 ms, max 0.3 ms): snapped",
+             "c.csv: jitter (RMS 0.168 ms, max 0.3 ms): snapped",
+             "a.csv: p1 offset -2 kPa", "b.csv: p2 offset 3 kPa"]
+    assert grouped(notes) == ["3 files (a.csv, b.csv, c.csv): jitter (RMS 0.168-0.176 ms, "
+                              "max 0.3 ms): snapped", "a.csv: p1 offset -2 kPa",
+                              "b.csv: p2 offset 3 kPa"]
