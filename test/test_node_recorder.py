@@ -301,7 +301,10 @@ def test_record_mode_at_another_rate_says_so_and_exports_at_it(launch, tmp_path)
     assert re.search(r"joint_states came every 2 ms, but sample_time is 1 ms: .* set "
                      r"sample_time:=0\.002", rec.output), rec.output
     ((_, exp),) = list(read_dataset(export_bag(bag, tmp_path / "data", progress=lambda _: None)))
-    assert np.allclose(np.diff(exp.t), 2e-3) and exp.t.size > 500
+    # Every recorded sample a row but the last (no command after it); how many were recorded
+    # depends on discovery (450 of the 3 s on Jazzy after the node tests before it).
+    stamps = _joint_stamps(bag)
+    assert np.allclose(np.diff(exp.t), 2e-3) and exp.t.size >= stamps.size - 1 > 100
 
 
 #: A locked charge held out and a free square: short, one of each rig state.
