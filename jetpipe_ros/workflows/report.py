@@ -237,8 +237,11 @@ def coverage_figure(prepared: Prepared) -> str:
     ax.set_yticks(range(len(records)), [r.name for r in records], fontsize=7)
     ax.set_ylim(len(records) - 0.5, -0.5)
     ax.set_xlabel("time in the experiment [s] (right: share of its samples compared)")
-    shown = [k for k in COVERAGE if k != "lost" or any(not_compared(r)[1].size
-                                                         for r in records)]
+    present = {"train": any(r.train.any() for r in records),
+               "holdout": any(r.holdout.any() for r in records),
+               "neither": any(not (r.train | r.holdout).all() for r in records),
+               "lost": any(not_compared(r)[1].size for r in records)}
+    shown = [k for k in COVERAGE if present[k]]
     ax.legend(handles=[Patch(color=COVERAGE[k][0], label=COVERAGE[k][1]) for k in shown],
               fontsize=8, loc="upper left", bbox_to_anchor=(1.04, 1.0))
     fig.tight_layout()
