@@ -48,7 +48,6 @@ controller cannot be reached or stops answering).
 from __future__ import annotations
 
 import math
-import statistics
 import struct
 import sys
 import time
@@ -70,12 +69,12 @@ from rosbags.rosbag2 import WriterError
 
 from jetpipe_ros.bag import BagWriter
 from jetpipe_ros.campaign import Campaign, CampaignError, Phase, load_campaign
+from jetpipe_ros.dataset.timebase import STREAM_INTERVALS, another_rate, median_interval
 from jetpipe_ros.model.params import ParamSpec
 from jetpipe_ros.nodes import interface, process
 from jetpipe_ros.nodes.parameters import (StartupError, declare, set_explained, skipped_sections,
                                           unknown_overrides, value)
 from jetpipe_ros.package_data import PackageDataError, share_file
-from jetpipe_ros.twin.monitor import RATE_TOLERANCE
 
 NODE_NAME = "id_recorder"
 NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
@@ -103,10 +102,6 @@ NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
               "messages", 10, 100000),
 ]}
 NS = 1_000_000_000
-#: Latest joint_states intervals whose median is the stream's sample time, and how far it may
-#: be from ``sample_time`` before the report says so (the live twin's rule,
-#: :data:`jetpipe_ros.twin.monitor.RATE_TOLERANCE`).
-INTERVALS = 200
 #: A kick of the sample answered last is taken as a lost command only this long [s, wall]
 #: after the answer (the simulator kicks every lockstep_kick, 0.2 s by default).
 KICK_GUARD = 0.1
@@ -158,7 +153,8 @@ class Recorder(Node):
         self._last: dict[str, int] = {}  # latest stamp per stamped topic
         self._first: dict[str, int] = {}
         self.dropped: dict[str, int] = {}
-        self._intervals: deque[int] = deque(maxlen=INTERVALS)  # latest joint_states intervals
+        #: joint_states' latest stamp intervals [ns]: its rate, checked against sample_time
+        self._intervals: deque[int] = deque(maxlen=STREAM_INTERVALS)
         self.heard: float | None = None  # wall time [s] of the latest joint_states message
         self.progressed = time.monotonic()  # wall time [s] of the latest new sample
         self.failure: str | None = None  # why the recording stopped early (a peer died)
@@ -319,14 +315,13 @@ class Recorder(Node):
             f"%), dropped: {drops}; {sim:.2f} s simulated in {wall:.2f} s wall "
             f"({sim / max(wall, 1e-9):.2f} x real time); answers re-sent {self.resent}; bag "
             f"{self.bag.path}")
-        if len(self._intervals) >= 20:
-            interval = statistics.median(self._intervals)
-            if abs(interval / self._dt_ns - 1.0) > RATE_TOLERANCE:
-                self.get_logger().warning(
-                    f"joint_states came every {interval / 1e6:.3g} ms, but sample_time is "
-                    f"{self._dt_ns / 1e6:.3g} ms: the drops above are counted on that grid; "
-                    f"set sample_time:={interval / 1e9:.3g} (jetpipe export takes the rate "
-                    f"from the stamps)")
+        interval = median_interval(self._intervals)
+        if interval is not None and another_rate(interval, self._dt_ns):
+            self.get_logger().warning(
+                f"joint_states came every {interval / 1e6:.3g} ms, but sample_time is "
+                f"{self._dt_ns / 1e6:.3g} ms: the drops above are counted on that grid; set "
+                f"sample_time:={interval / 1e9:.3g} (jetpipe export takes the rate from the "
+                f"stamps)")
         silent = [n for n in self._pressure_topics() if n not in self._last]
         if silent and kept:
             self.get_logger().info(

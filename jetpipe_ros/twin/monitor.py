@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from jetpipe_ros.dataset.timebase import STREAM_INTERVALS, another_rate, median_interval
 from jetpipe_ros.diagnosis.data import SIGNALS, SPLIT_GAP, noise_level
 from jetpipe_ros.diagnosis.noise_floor import SEED
 from jetpipe_ros.diagnosis.prediction import HORIZON, START_RANGE, WARMUP
@@ -49,15 +50,6 @@ from jetpipe_ros.twin.stepper import OUT_COLUMNS, Stepper
 #: Default rolling window of the gap [s] and history of the noise-only spread [s].
 WINDOW = 5.0
 HISTORY = 30.0
-#: Latest stamp intervals whose median is the stream's sample time (:meth:`Twin.interval`).
-INTERVALS = 200
-#: Relative difference between that median and the set sample time beyond which the stream is
-#: at another rate (:meth:`Twin.rate_mismatch`). Each interval is rounded to whole samples, so
-#: a stream 5 % slower than the set sample time runs the model 5 % fast against the hardware
-#: (its 2 ms valve delay read as 1.9 ms); the median of 200 intervals of a stream whose stamps
-#: jitter by +-0.3 of a sample and that lost 1 % of them is within 2 % of the truth
-#: (``test_twin.py``).
-RATE_TOLERANCE = 0.05
 
 
 @dataclass(frozen=True)
@@ -150,7 +142,7 @@ class Twin:
         self._h = _Horizon(period)
         self._meas = np.empty(3)
         self._sigmas: deque[np.ndarray] = deque(maxlen=self.gaps.history)
-        self._intervals: deque[float] = deque(maxlen=INTERVALS)
+        self._intervals: deque[float] = deque(maxlen=STREAM_INTERVALS)
 
     @property
     def level(self) -> Level:
@@ -198,16 +190,17 @@ class Twin:
         return self._sample(t, u, f, meas)
 
     def interval(self) -> float | None:
-        """The median of the latest :data:`INTERVALS` stamp intervals [s]: the hardware's sample
-        time (None before 20)."""
-        return float(np.median(self._intervals)) if len(self._intervals) >= 20 else None
+        """The hardware's sample time [s]: the median of the latest stamp intervals
+        (:func:`~jetpipe_ros.dataset.timebase.median_interval`; None before there are enough)."""
+        return median_interval(self._intervals)
 
     def rate_mismatch(self) -> str | None:
         """In words, when the stamps come at another rate than the set sample time (by more than
-        :data:`RATE_TOLERANCE`): samples then look lost (a stream at a multiple of it), late (a
-        faster one), or the model runs at another speed than the hardware (any other)."""
+        :data:`~jetpipe_ros.dataset.timebase.RATE_TOLERANCE`): samples then look lost (a stream
+        at a multiple of it), late (a faster one), or the model runs at another speed than the
+        hardware (any other)."""
         interval, dt = self.interval(), self.settings.dt
-        if interval is None or abs(interval / dt - 1.0) <= RATE_TOLERANCE:
+        if interval is None or not another_rate(interval, dt):
             return None
         return (f"the stamps come every {interval * 1e3:.3g} ms, but sample_time is "
                 f"{dt * 1e3:.3g} ms: set it to the hardware's, {interval:.3g} s")
