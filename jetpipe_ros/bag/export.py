@@ -44,6 +44,7 @@ from jetpipe_ros.bag.recover import StreamReport, stream_messages
 from jetpipe_ros.bag.writer import EVENTS_TOPIC, TYPESTORE
 from jetpipe_ros.dataset import DatasetError, Entry, write_dataset
 from jetpipe_ros.dataset.dataset import check_target
+from jetpipe_ros.dataset.timebase import fit_grid
 
 MAX_MISSING = 0.01  #: largest fraction of an experiment's samples that may be interpolated
 #: Stamped topics read, by the suffix their (possibly namespaced) name ends with.
@@ -258,23 +259,18 @@ def _recording(bag: Path, signals: dict[str, dict[str, np.ndarray]],
     t_k (t from the first, as stamped: jitter and lost samples are the dataset reader's to
     snap and fill), u_k and the load from the ``voltage_applied`` stamped next (the command
     applied over [t_k, t_k+1)), each pressure from its message stamped nearest t_k. The sample
-    time is the median stamp interval; a partner message further than half of it from where it
-    belongs makes the row a lost one (left out, counted). The piston is taken as free and no
-    role is set (the diagnosis then holds out the last 30 %): ``dataset.yaml`` says otherwise
-    where the user knows better."""
+    time is the step of the regular grid nearest the stamps (the dataset reader's own fit,
+    :func:`~jetpipe_ros.dataset.timebase.fit_grid`); a partner message further than half of it
+    from where it belongs makes the row a lost one (left out, counted). The piston is taken as
+    free and no role is set (the diagnosis then holds out the last 30 %): ``dataset.yaml`` says
+    otherwise where the user knows better."""
     js, va = signals["joint_states"], signals["voltage_applied"]
     t = js["t"]
     if t.size < 3 or va["t"].size < 2:
         raise BagError(f"{bag}: too few joint_states ({t.size}) or voltage_applied "
                        f"({va['t'].size}) messages to make a record of")
-    # The sample time: each interval counted in samples of the median interval, then the slope
-    # of the stamps against those sample numbers (the median of jittered intervals is off by
-    # microseconds, which over thousands of samples would miscount the lost ones).
-    gaps = np.diff(t)
-    step = np.r_[0.0, np.cumsum(np.maximum(np.round(gaps / np.median(gaps)), 1.0))]
-    dt = int(round(np.polyfit(step, (t - t[0]).astype(float), 1)[0]))
-    keep = np.ones(t.size, dtype=bool)
-    cols: dict[str, np.ndarray] = {}
+    tau = (t - t[0]) * 1e-9  # [s] from the first stamp: absolute clocks lose digits
+    dt = int(round(fit_grid(tau, float(np.median(np.diff(tau))))[1] * 1e9))  # [ns]
 
     def partner(sig: dict[str, np.ndarray], at: np.ndarray) -> np.ndarray:
         """Index of ``sig``'s message stamped nearest each of ``at``; -1 beyond dt / 2."""
@@ -287,7 +283,7 @@ def _recording(bag: Path, signals: dict[str, dict[str, np.ndarray]],
     nxt = np.r_[t[1:], t[-1] + dt]
     nxt = np.where(nxt - t <= dt + dt // 2, nxt, t + dt)
     command = partner(va, nxt)
-    keep &= command >= 0
+    keep = command >= 0
     keep[-1] = False  # the command after the last sample is not in the bag
     pressures = {key: partner(signals[suffix], t) for key, suffix in OPTIONAL.items()
                  if _within(signals.get(suffix), t) and signals[suffix]["t"].size > 1}
@@ -297,9 +293,8 @@ def _recording(bag: Path, signals: dict[str, dict[str, np.ndarray]],
     if rows.size < 3:
         raise BagError(f"{bag}: no joint_states sample has its voltage_applied and pressures "
                        f"within {dt / 2e6:g} ms: not a stream of the topic contract")
-    cols["t"] = (t[rows] - t[rows[0]]) * 1e-9
-    cols["u"] = va["u"][command[rows]]
-    cols["y"], cols["v"] = js["y"][rows], js["v"][rows]
+    cols = {"t": tau[rows] - tau[rows[0]], "u": va["u"][command[rows]],
+            "y": js["y"][rows], "v": js["v"][rows]}
     for key, j in pressures.items():
         cols[key] = signals[OPTIONAL[key]]["p"][j[rows]]
     load = va["f_load"][command[rows]]
