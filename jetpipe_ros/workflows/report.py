@@ -220,6 +220,7 @@ def coverage_figure(prepared: Prepared) -> str:
         return ""
     fig, ax = plt.subplots(figsize=(10, 0.28 * len(records) + 1.1))
     dt = prepared.dt
+    drawn = set()  # the kinds of COVERAGE the chart shows: its legend's
     for lane, rec in enumerate(records):
         kind = np.where(rec.train, 0, np.where(rec.holdout, 1, 2))
         edges = np.flatnonzero(np.diff(kind)) + 1
@@ -228,21 +229,19 @@ def coverage_figure(prepared: Prepared) -> str:
             runs = [(rec.t[a], (b - a) * dt) for a, b in zip(starts, ends) if kind[a] == k]
             if runs:
                 ax.broken_barh(runs, (lane - 0.38, 0.76), color=COVERAGE[name][0], lw=0)
+                drawn.add(name)
         compared = rec.train | rec.holdout
         _, lost = not_compared(rec)
         if lost.size:
             ax.vlines(rec.t[lost], lane - 0.38, lane + 0.38, color=COVERAGE["lost"][0], lw=0.6)
+            drawn.add("lost")
         ax.text(rec.t[-1] + dt, lane, f" {100 * compared.mean():.0f} %", va="center",
                 fontsize=7)
     ax.set_yticks(range(len(records)), [r.name for r in records], fontsize=7)
     ax.set_ylim(len(records) - 0.5, -0.5)
     ax.set_xlabel("time in the experiment [s] (right: share of its samples compared)")
-    present = {"train": any(r.train.any() for r in records),
-               "holdout": any(r.holdout.any() for r in records),
-               "neither": any(not (r.train | r.holdout).all() for r in records),
-               "lost": any(not_compared(r)[1].size for r in records)}
-    shown = [k for k in COVERAGE if present[k]]
-    ax.legend(handles=[Patch(color=COVERAGE[k][0], label=COVERAGE[k][1]) for k in shown],
+    ax.legend(handles=[Patch(color=COVERAGE[k][0], label=COVERAGE[k][1])
+                       for k in COVERAGE if k in drawn],
               fontsize=8, loc="upper left", bbox_to_anchor=(1.04, 1.0))
     fig.tight_layout()
     return png_img(fig)
