@@ -307,25 +307,14 @@ def test_record_mode_at_another_rate_says_so_and_exports_at_it(launch, tmp_path)
     assert np.allclose(np.diff(exp.t), 2e-3) and exp.t.size >= stamps.size - 1 > 100
 
 
-#: A locked charge held out and a free square: short, one of each rig state.
-ONE_PRESSURE_PLAN = """
-settle: {center: 0.5, rest: 0.3}
-experiments:
-  - {name: charge_1p15V, kind: open_loop, locked: true, role: holdout, duration: 0.5,
-     voltage: {signal: steps, levels: [1.15, -1.15], durations: [0.3, 0.2]}}
-  - {name: square_0p6V, kind: open_loop, role: train, duration: 1.0,
-     voltage: {signal: square, amplitude: 0.6, frequency: 2.0}}
-"""
-
-
 def test_a_rig_with_one_pressure_sensor_is_recorded_and_exported_without_the_other(launch,
                                                                                   tmp_path):
     """``pressure_sensors: p1`` on the simulator: chamber2/pressure is never advertised, the
     recorder does not wait for it and says so, and the export writes p1 but no p2 column
     (a one-pressure record, as the diagnosis reads it); what was measured is the offline
-    runner's."""
+    runner's. The regulated friction test's plan: every rig state, the regulated one too."""
     plan_file = tmp_path / "plan.yaml"
-    plan_file.write_text(ONE_PRESSURE_PLAN)
+    plan_file.write_text(REGULATED_PLAN)
     bag = tmp_path / "one"
     rec = _composed(launch, "/one", bag, actuator_sim={"pressure_sensors": "p1"},
                     id_recorder={"campaign_file": str(plan_file)})
