@@ -5,8 +5,6 @@ complete (docs/diagnosis.md)."""
 
 from __future__ import annotations
 
-import sys
-import time
 from pathlib import Path
 
 from jetpipe_ros import fileio
@@ -14,23 +12,11 @@ from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.diagnosis.diagnose import Diagnosis, diagnose_dataset
 from jetpipe_ros.model import ModelParams, ParameterError
 from jetpipe_ros.model.limits import Limits
+from jetpipe_ros.progress import Progress
 from jetpipe_ros.workflows.cluster import Cluster
 from jetpipe_ros.workflows.report import render
 
 OUTPUTS = ("diagnosis.json", "report.html", "augmented.yaml")
-
-
-class Progress:
-    """Progress lines on stderr with elapsed time."""
-
-    def __init__(self, quiet: bool = False) -> None:
-        self.quiet = quiet
-        self.start = time.perf_counter()
-
-    def __call__(self, message: str) -> None:
-        if not self.quiet:
-            print(f"[{time.perf_counter() - self.start:6.1f} s] {message}", file=sys.stderr,
-                  flush=True)
 
 
 def diagnose(dataset_dir: str | Path, out_dir: str | Path, params: ModelParams | None = None,
