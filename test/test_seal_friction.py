@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -11,7 +12,7 @@ import pytest
 
 from jetpipe_ros.cli import main
 from jetpipe_ros.dataset import DatasetError, read_dataset, read_records
-from jetpipe_ros.identify.seal import (fit_form, measured_presliding, no_profile, planes_of,
+from jetpipe_ros.identify.seal import (FORMS, fit_form, measured_presliding, no_profile, planes_of,
                                        prepare, scores)
 from jetpipe_ros.model import load_params
 from jetpipe_ros.model.actuator import simulate
@@ -95,6 +96,26 @@ def test_synthetic_record_recovers_its_maxwell_slip_parameters(tmp_path):
         # Its amplitude too: the fitted ripple against the true one, a slope within 10 %.
         slope = np.polyfit(truth - 1.0, fit.profile[row, inside] - 1.0, 1)[0]
         assert slope == pytest.approx(1.0, abs=0.1), (row, slope)
+
+
+def test_the_fits_run_on_several_processes_to_the_same_answer_and_say_so(tmp_path, capsys):
+    """``--jobs 2`` fits the forms on two processes: the outputs are those of one process, byte
+    for byte, and each fit's end is a progress line on stderr (stdout keeps the results)."""
+    rig = _synthetic(tmp_path)
+    outs = {}
+    for jobs in (1, 2):
+        outs[jobs] = tmp_path / f"out{jobs}"
+        assert main(["friction", str(rig), "--out", str(outs[jobs]), "--jobs", str(jobs)]) == 0
+        captured = capsys.readouterr()
+        lines = captured.err.splitlines()
+        assert f"4 fits on {jobs} process(es)" in lines[0]
+        ends = [re.fullmatch(r"\[ *[\d.]+ s\] \[(\d)/4\] seal synthetic: (\w+) fitted", line)
+                for line in lines[1:]]
+        assert all(ends) and [int(m[1]) for m in ends] == [1, 2, 3, 4], lines
+        assert sorted(m[2] for m in ends) == sorted(FORMS)
+        assert "selected" in captured.out and "fitted" not in captured.out
+    for name in ("friction.json", "friction.yaml", "prediction/rig.csv"):
+        assert (outs[1] / name).read_bytes() == (outs[2] / name).read_bytes(), name
 
 
 def test_real_record_presliding_within_its_measured_range():
@@ -362,3 +383,4 @@ def test_a_column_in_other_units_is_refused_naming_it(tmp_path, column, scale, m
     rig = _write_rig(tmp_path / "units", *rows.T)
     with pytest.raises(DatasetError, match=message):
         read_records(rig)
+

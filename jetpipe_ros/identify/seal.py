@@ -590,37 +590,57 @@ class SealResult:
         return self.per_record[form].get(prep.record.name, self.seal_fits[form])
 
 
-def identify_seal(seal: str, preps: list[Prepared], split: float = 0.5) -> SealResult:
-    """Fit every form to each training record of one seal (prepared with its first ``split``
-    fitted), combine them over pressure (:func:`combine`), judge each record's held-out
-    samples with its own fit (a ``role: holdout`` record with the seal's), and select a form
-    (:func:`select`)."""
-    files = ", ".join(p.record.file for p in preps)
-    who = f"seal {seal}: " if seal else ""
+def training(seal: str, preps: list[Prepared], split: float = 0.5) -> list[Prepared]:
+    """The records of one seal that have moving training samples; DatasetError naming the seal
+    and its files if none has."""
     trained = [p for p in preps if p.train.any()]
     if not trained:
-        raise DatasetError(f"{who}no moving training samples in {files} (all role: "
-                           f"holdout, or the rod never moves faster than "
-                           f"{MIN_SPEED * 1e3:g} mm/s)")
-    per_record: dict[str, dict[str, FormFit]] = {}
-    seal_fits: dict[str, FormFit] = {}
+        files = ", ".join(p.record.file for p in preps)
+        raise DatasetError(f"{f'seal {seal}: ' if seal else ''}no moving training samples in "
+                           f"{files} (all role: holdout, or the rod never moves faster than "
+                           f"{MIN_SPEED * 1e3:g} mm/s; split {split:g})")
+    return trained
+
+
+def fit_seal_form(seal: str, form: str, trained: list[Prepared]
+                  ) -> tuple[dict[str, FormFit], FormFit]:
+    """``form`` fitted to each of one seal's training records alone (record name -> fit), and
+    the seal's fit over pressure: the records' fits combined (:func:`combine`) and, with
+    several records, refined by one fit of them all. One task of :func:`identify_seal`, which
+    the command runs in parallel."""
+    own = {p.record.name: fit_form(form, [p], p.record.file) for p in trained}
+    fit = combine(form, [own[p.record.name] for p in trained], trained)
+    if len(trained) > 1:
+        # One set of planes for all the seal's pressures, refined from the combination.
+        fit = fit_form(form, trained, seal or "seal", start=fit, max_nfev=SEAL_NFEV)
+    return own, fit
+
+
+def identify_seal(seal: str, preps: list[Prepared], split: float = 0.5,
+                  fitted: dict[str, tuple[dict[str, FormFit], FormFit]] | None = None
+                  ) -> SealResult:
+    """Fit every form to each training record of one seal (prepared with its first ``split``
+    fitted), combine them over pressure (:func:`fit_seal_form`; ``fitted`` gives those fits,
+    form -> its result, when they were made elsewhere), judge each record's held-out samples
+    with its own fit (a ``role: holdout`` record with the seal's), and select a form
+    (:func:`select`)."""
+    trained = training(seal, preps, split)
+    if fitted is None:
+        fitted = {form: fit_seal_form(seal, form, trained) for form in FORMS}
+    per_record = {form: fitted[form][0] for form in FORMS}
+    seal_fits = {form: fitted[form][1] for form in FORMS}
     judged: dict[str, dict[str, dict[str, float]]] = {}
     for form in FORMS:
-        own = {p.record.name: fit_form(form, [p], p.record.file) for p in trained}
-        per_record[form] = own
-        seal_fits[form] = combine(form, [own[p.record.name] for p in trained], trained)
-        if len(trained) > 1:
-            # One set of planes for all the seal's pressures, refined from the combination.
-            seal_fits[form] = fit_form(form, trained, seal or "seal", start=seal_fits[form],
-                                       max_nfev=SEAL_NFEV)
         judged[form] = {}
         for p in preps:
             if p.test.sum() >= 10:
-                fit = own.get(p.record.name, seal_fits[form])
+                fit = per_record[form].get(p.record.name, seal_fits[form])
                 judged[form][p.record.name] = scores(
                     p.friction[p.test], fit.predict(p)[p.test], p.v[p.test])
     if not judged[FORMS[0]]:
-        raise DatasetError(f"{who}no held-out moving samples in {files} (split {split:g})")
+        files = ", ".join(p.record.file for p in preps)
+        raise DatasetError(f"{f'seal {seal}: ' if seal else ''}no held-out moving samples in "
+                           f"{files} (split {split:g})")
     return SealResult(seal=seal, preps=preps, per_record=per_record, seal_fits=seal_fits,
                       scores=judged, selected=select(judged, preps))
 

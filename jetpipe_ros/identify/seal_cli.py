@@ -1,13 +1,63 @@
 """``jetpipe friction DIR --out OUT``: seal friction from friction-rig records or from the
 actuator's own friction tests (a dataset).
 
-Every output (``friction.yaml``, ``friction.json``, ``report.html``, ``prediction/*.csv``) is
-written together at the end: all or, on an error, none.
+The fits (every form on every seal: :func:`jetpipe_ros.identify.seal.fit_seal_form`) run on
+``--workers`` processes, each finished one said on stderr with the time since the start. Every
+output (``friction.yaml``, ``friction.json``, ``report.html``, ``prediction/*.csv``) is written
+together at the end: all or, on an error, none.
 """
 
 from __future__ import annotations
 
+import multiprocessing
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
+
+from threadpoolctl import threadpool_limits
+
+from jetpipe_ros.arguments import positive_int
+from jetpipe_ros.progress import Progress
+
+
+def _fit_all(seals: dict[str, list], split: float, jobs: int, progress: Progress) -> dict:
+    """Every form fitted to every seal's records (seal -> form -> :func:`fit_seal_form`'s
+    result), on ``jobs`` processes, each fit's end said through ``progress``."""
+    from jetpipe_ros.identify.seal import FORMS, training
+
+    trained = {seal: training(seal, preps, split) for seal, preps in seals.items()}
+    tasks = [(seal, form) for seal in seals for form in FORMS]
+    progress(f"fitting {len(FORMS)} forms to {len(seals)} seal(s) "
+             f"({sum(map(len, trained.values()))} training records): {len(tasks)} fits on "
+             f"{min(jobs, len(tasks))} process(es)")
+    fitted: dict[str, dict] = {seal: {} for seal in seals}
+    for done, (seal, form, result) in enumerate(_fits(tasks, trained, jobs), 1):
+        fitted[seal][form] = result
+        progress(f"[{done}/{len(tasks)}] {f'seal {seal}: ' if seal else ''}{form} fitted")
+    return fitted
+
+
+def _fits(tasks: list[tuple[str, str]], trained: dict[str, list], jobs: int
+          ) -> Iterator[tuple[str, str, tuple]]:
+    """(seal, form, result) of each fit as it ends: in this process with one job, else on a
+    pool of ``jobs`` processes, spawned (a forked one would inherit numba's and BLAS's
+    threads) and each held to one BLAS thread as the command is (more would oversubscribe the
+    cores); an error in a fit is raised here and the fits not started are dropped."""
+    from jetpipe_ros.identify.seal import fit_seal_form
+
+    if jobs == 1:
+        for seal, form in tasks:
+            yield seal, form, fit_seal_form(seal, form, trained[seal])
+        return
+    with ProcessPoolExecutor(min(jobs, len(tasks)), multiprocessing.get_context("spawn"),
+                             initializer=threadpool_limits, initargs=(1,)) as pool:
+        futures = {pool.submit(fit_seal_form, seal, form, trained[seal]): (seal, form)
+                   for seal, form in tasks}
+        try:
+            for future in as_completed(futures):
+                yield *futures[future], future.result()
+        finally:
+            pool.shutdown(cancel_futures=True)
 
 
 def _run(args) -> int:
@@ -19,6 +69,7 @@ def _run(args) -> int:
                                                   to_json)
     from jetpipe_ros.model import ModelParams, load_params
 
+    progress = Progress(args.quiet)
     out = fileio.output_dir(args.out, "--out")
     if not 0.05 <= args.split <= 0.95:
         raise DatasetError(f"--split: {args.split:g} must lie in [0.05, 0.95]")
@@ -40,7 +91,11 @@ def _run(args) -> int:
         for rec in records:
             seals.setdefault(rec.seal, []).append(prepare(rec, args.split))
         notes = [n for rec in records for n in rec.notes]
-    results = [identify_seal(seal, preps, args.split) for seal, preps in seals.items()]
+    for note in grouped_notes(notes):
+        print(f"read: {note}", flush=True)
+    fitted = _fit_all(seals, args.split, args.jobs, progress)
+    results = [identify_seal(seal, preps, args.split, fitted[seal])
+               for seal, preps in seals.items()]
     doc = to_json(results, args.split, notes)
     files: dict = {out / "friction.yaml": params_yaml(results[0], base),
                    out / "friction.json": fileio.to_json(doc) + "\n",
@@ -52,8 +107,6 @@ def _run(args) -> int:
         for prep in res.preps:
             files[out / "prediction" / f"{prep.record.name}.csv"] = prediction_csv(res, prep)
     fileio.write_files(files)
-    for note in grouped_notes(notes):
-        print(f"read: {note}")
     for form, s in doc["summary"].items():
         print(f"{form:16s} held-out median NRMSE {s['median_nrmse'] * 100:5.2f} %  "
               f"R^2 within direction {s['median_r2_within']:5.2f}")
@@ -84,4 +137,7 @@ def add_command(subparsers) -> None:
                                       "default: the nominal model")
     cmd.add_argument("--split", type=float, default=0.5,
                      help="fraction of each record fitted; the rest is judged (default 0.5)")
+    cmd.add_argument("--jobs", type=positive_int, default=2,
+                     help="processes the fits run on (default 2; 1: in this process)")
+    cmd.add_argument("--quiet", action="store_true", help="no progress lines")
     cmd.set_defaults(func=_run)
