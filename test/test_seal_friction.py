@@ -384,3 +384,40 @@ def test_a_column_in_other_units_is_refused_naming_it(tmp_path, column, scale, m
     with pytest.raises(DatasetError, match=message):
         read_records(rig)
 
+
+def test_records_in_their_loggers_units_and_names_read_as_in_si(tmp_path):
+    """The source's own units (t in ms, x in mm, p in gauge bar) and a force in kN, with the
+    logger's column names, declared in records.yaml (top level and per record): the same record
+    as the SI file, and each conversion said once; a gauge needs no reference here."""
+    rows = np.loadtxt(SEALS / "PK_1bar.csv", delimiter=",", skiprows=1)
+    shutil.copy(SEALS / "PK_1bar.csv", tmp_path / "si.csv")
+    raw = np.column_stack([rows[:, 0] * 1e3, rows[:, 1] * 1e3, (rows[:, 2] - P_ATM) * 1e-5,
+                           rows[:, 3] * 1e-3])
+    np.savetxt(tmp_path / "raw.csv", raw, delimiter=";", fmt="%.12g",
+               header="Time [ms];Position [mm];Pressure [barg];Force [kN]", comments="")
+    (tmp_path / "records.yaml").write_text(
+        "units: {t: ms, x: mm, p: bar gauge}\n"
+        "records:\n  - file: si.csv\n    bore: 0.025\n    units: {t: s, x: m, p: Pa}\n"
+        "  - file: raw.csv\n    bore: 0.025\n    units: {F: kN}\n"
+        "    columns: {'Time [ms]': t, 'Position [mm]': x, 'Pressure [barg]': p, "
+        "'Force [kN]': F}\n")
+    si, declared = read_records(tmp_path)
+    assert declared.t.size == si.t.size
+    for name in ("t", "x", "p", "friction"):
+        assert np.allclose(getattr(declared, name), getattr(si, name), rtol=1e-9, atol=1e-9), name
+    said = " ".join(declared.notes)
+    assert "p: bar gauge -> Pa absolute (x 100000, + 100000 Pa)" in said
+    assert "F: kN -> N" in said and "x: mm -> m" in said and "assumed" not in said
+
+
+@pytest.mark.parametrize("units, message", [
+    ("{x: inch}", "column 'x': unknown unit 'inch'; accepted: m, mm, cm, um"),
+    ("{p: bar gauge, gauge_reference: 1013 hPa}", "gauge_reference is not needed"),
+    ("{v: mm/s}", "unknown column 'v'; units can be declared for t, x, p, F"),
+])
+def test_a_wrong_unit_declaration_names_the_field(tmp_path, units, message):
+    shutil.copy(SEALS / "PK_1bar.csv", tmp_path)
+    (tmp_path / "records.yaml").write_text(
+        f"units: {units}\nrecords:\n  - file: PK_1bar.csv\n    bore: 0.025\n")
+    with pytest.raises(DatasetError, match=re.escape(message)):
+        read_records(tmp_path)

@@ -117,26 +117,26 @@ class Dataset:
         return [f"{e.file}: {note}" for e, x in self for note in x.notes]
 
 
-def column_names(where: str, raw: Any) -> dict[str, str]:
-    """A ``columns:`` mapping (the CSV's name -> the contract's, docs/data.md) validated;
-    DatasetError naming ``where`` otherwise."""
+def column_names(where: str, raw: Any, contract: Sequence[str] = CONTRACT) -> dict[str, str]:
+    """A ``columns:`` mapping (the CSV's name -> the contract's, docs/data.md; ``contract``:
+    the names a file of its kind has) validated; DatasetError naming ``where`` otherwise."""
     if raw is None:
         return {}
     if not isinstance(raw, Mapping):
         raise DatasetError(f"{where}: expected a mapping of the CSV's column names to the "
-                           f"contract's ({', '.join(CONTRACT)}), got {raw!r}")
+                           f"contract's ({', '.join(contract)}), got {raw!r}")
     out: dict[str, str] = {}
     for source, target in raw.items():
-        if not isinstance(source, str) or target not in CONTRACT:
+        if not isinstance(source, str) or target not in contract:
             raise DatasetError(f"{where}: {source!r}: {target!r} is not a column of the "
-                               f"contract (one of {', '.join(CONTRACT)})")
+                               f"contract (one of {', '.join(contract)})")
         if target in out.values():
             raise DatasetError(f"{where}: two columns named {target!r}")
         out[source] = target
     return out
 
 
-def _merged(top: Mapping[str, str], own: Mapping[str, str]) -> dict[str, str]:
+def merged_columns(top: Mapping[str, str], own: Mapping[str, str]) -> dict[str, str]:
     """The top level's column names with the entry's own overriding them, per contract name."""
     return {**{s: t for s, t in top.items() if t not in own.values()}, **own}
 
@@ -171,7 +171,7 @@ def parse_entry(index: Path, i: int, raw: Any, units: Mapping[str, str] | None =
     own = declared(f"{where} ({file}): field 'units'", raw.pop("units", None))
     names = column_names(f"{where} ({file}): field 'columns'", raw.pop("columns", None))
     return Entry(file=file, piston=piston, load_force=float(load), role=role, extra=raw,
-                 units={**(units or {}), **own}, columns=_merged(columns or {}, names))
+                 units={**(units or {}), **own}, columns=merged_columns(columns or {}, names))
 
 
 #: A number in a note (not the digit of a name such as ``p1``).

@@ -105,12 +105,13 @@ def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
 
 def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
                  any_of: Sequence[str] = (), least: int = 2, hint: str = "",
-                 rename: Mapping[str, str] | None = None
+                 rename: Mapping[str, str] | None = None, index: str = "dataset.yaml"
                  ) -> tuple[dict[str, np.ndarray], np.ndarray, list[str]]:
     """The numeric columns ``known`` that a CSV with a header row has (``required`` all of
     them, at least one of ``any_of``), each as a float array, the file's line number of every
     data row kept, and what reading changed, one plain sentence each. ``rename`` maps the
-    file's own column names to those (each must be in the header).
+    file's own column names to those (each must be in the header; ``index`` names the file
+    that declared them, for the message).
 
     Blank lines and comment lines (``#`` first: a logger's metadata) are skipped, a
     spreadsheet's byte-order mark too; the separator is the header's (a comma, else a semicolon
@@ -147,7 +148,7 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
         if rename:
             notes.append("column" + ("s " if len(rename) > 1 else " ") + ", ".join(
                 f"{a} read as {rename[a]}" for a in header if a in rename))
-            header = _renamed(path, first, header, rename)
+            header = _renamed(path, first, header, rename, index)
         missing = [c for c in required if c not in header]
         if missing:
             raise DatasetError(f"{path}: line {first}: missing column(s) {', '.join(missing)} "
@@ -219,13 +220,14 @@ def _rows_said(rows: np.ndarray, what: str, first: list[str]) -> str:
             f"{', '.join(first)}{', ...' if n > len(first) else ''})")
 
 
-def _renamed(path: Path, line: int, header: list[str], rename: Mapping[str, str]
+def _renamed(path: Path, line: int, header: list[str], rename: Mapping[str, str], index: str
              ) -> list[str]:
-    """``header`` with the file's names in ``rename`` replaced by the contract's."""
+    """``header`` with the file's names in ``rename`` (declared in ``index``) replaced by the
+    contract's."""
     absent = [a for a in rename if a not in header]
     if absent:
         raise DatasetError(f"{path}: line {line}: column(s) {', '.join(absent)} named in "
-                           f"dataset.yaml's 'columns' not in the header (header has "
+                           f"{index}'s 'columns' not in the header (header has "
                            f"{', '.join(header)})")
     out = [rename.get(h, h) for h in header]
     twice = sorted({c for c in out if out.count(c) > 1 and c in rename.values()})

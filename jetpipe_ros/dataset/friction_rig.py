@@ -8,8 +8,13 @@ A friction-rig folder holds ``records.yaml`` and one CSV per record::
         gauge_bar: 5         # set pressure [bar gauge], optional (the CSV's p is what is used)
         seal: NAPN           # optional: records of one seal are fitted together
         role: holdout        # train | holdout, optional: holdout records are not fitted
+        units: {F: kN}       # optional: this CSV's units (overrides the top level)
+        columns: {Force: F}  # optional: this CSV's own column names -> t, x, p, F
+    units: {t: ms, x: mm, p: bar gauge}   # optional, for every record
+    columns: {time: t}                    # optional, for every record
 
-Each CSV has the header ``t,x,p,F`` (s, m, Pa absolute, N): time, rod position, the chamber
+Each CSV has the columns ``t,x,p,F`` (s, m, Pa absolute, N, unless ``units:`` declares others,
+as ``dataset.yaml`` does: :mod:`jetpipe_ros.dataset.units`): time, rod position, the chamber
 pressure acting on the bore (the other side at atmosphere) and the force measured on the rod.
 The friction is F - (p - p_atm) A, positive in the direction of motion.
 
@@ -29,14 +34,18 @@ from typing import Any
 import numpy as np
 import yaml
 
+from jetpipe_ros.dataset.dataset import column_names, merged_columns
 from jetpipe_ros.dataset.errors import DatasetError
 from jetpipe_ros.dataset.experiment import read_columns
 from jetpipe_ros.dataset.timebase import check_increasing
+from jetpipe_ros.dataset.units import REFERENCE, declared, to_si
 from jetpipe_ros.fileio import load_yaml
 from jetpipe_ros.model.flow import P_ATM
 
 INDEX = "records.yaml"
 COLUMNS = ("t", "x", "p", "F")
+#: The quantity of each column, for the units a record may declare.
+QUANTITIES = {"t": "time", "x": "length", "p": "pressure", "F": "force"}
 ROLES = ("train", "holdout")
 #: A grid point farther than this many sample times from any logged row is a gap.
 GAP_TOLERANCE = 0.6
@@ -100,13 +109,20 @@ def read_records(root: str | Path) -> list[RigRecord]:
     raw = tree.get("records") if isinstance(tree, dict) else None
     if not isinstance(raw, list) or not raw:
         raise DatasetError(f"{index}: expected a non-empty list 'records:'")
+    unknown = set(tree) - {"records", "units", "columns"}
+    if unknown:
+        raise DatasetError(f"{index}: unknown field(s) {', '.join(sorted(unknown))} (known: "
+                           f"records, units, columns)")
+    units = _units(f"{index}: units", tree.get("units"))
+    columns = column_names(f"{index}: columns", tree.get("columns"), COLUMNS)
     records, seen = [], set()
     for i, entry in enumerate(raw, 1):
         where = f"{index}: record {i}"
         if not isinstance(entry, dict) or not isinstance(entry.get("file"), str):
             raise DatasetError(f"{where}: expected a mapping with a 'file:' name")
         where = f"{index}: record {i} ({entry['file']})"
-        unknown = set(entry) - {"file", "bore", "area", "gauge_bar", "seal", "role"}
+        unknown = set(entry) - {"file", "bore", "area", "gauge_bar", "seal", "role", "units",
+                                "columns"}
         if unknown:
             raise DatasetError(f"{where}: unknown field(s) {', '.join(sorted(unknown))}")
         if entry["file"] in seen:
@@ -125,7 +141,10 @@ def read_records(root: str | Path) -> list[RigRecord]:
         gauge = entry.get("gauge_bar")
         set_pressure = None if gauge is None else \
             P_ATM + 1e5 * _number(where, "gauge_bar", gauge, 0.0, 100.0, "bar")
-        t, x, p, force, valid, notes = _read_csv(root / entry["file"])
+        own = _units(f"{where}: field 'units'", entry.get("units"))
+        names = column_names(f"{where}: field 'columns'", entry.get("columns"), COLUMNS)
+        t, x, p, force, valid, notes = _read_csv(root / entry["file"], {**units, **own},
+                                                 merged_columns(columns, names))
         records.append(RigRecord(
             name=Path(entry["file"]).stem, file=entry["file"], seal=str(entry.get("seal", "")),
             area=area, role=role, set_pressure=set_pressure, t=t, x=x, p=p, force=force,
@@ -133,24 +152,45 @@ def read_records(root: str | Path) -> list[RigRecord]:
     return records
 
 
-def _read_csv(path: Path) -> tuple[np.ndarray, ...]:
-    """(t, x, p, F on a regular grid, valid mask, notes) of one record CSV."""
-    cols, lines, read = read_columns(path, COLUMNS, COLUMNS, least=MIN_ROWS,
-                                     hint="; needs t,x,p,F in s, m, Pa absolute, N")
+def _units(where: str, raw: Any) -> dict[str, str]:
+    """A record's ``units:`` mapping, validated; DatasetError naming ``where`` otherwise. No
+    ``gauge_reference``: the friction takes the pressure against the atmosphere on the rod's
+    other side, which is what a gauge reads, whatever the ambient pressure."""
+    units = declared(where, raw, QUANTITIES)
+    if REFERENCE in units:
+        raise DatasetError(f"{where}: {REFERENCE} is not needed on a friction rig (the "
+                           f"pressure acts against the atmosphere on the rod's other side, "
+                           f"which is what a gauge reads): leave it out")
+    return units
+
+
+def _read_csv(path: Path, units: dict[str, str], columns: dict[str, str]
+              ) -> tuple[np.ndarray, ...]:
+    """(t, x, p, F on a regular grid [SI], valid mask, notes) of one record CSV whose columns
+    are named ``columns`` (the file's name -> the contract's) and in ``units`` (declared)."""
+    cols, lines, read = read_columns(path, COLUMNS, COLUMNS, least=MIN_ROWS, rename=columns,
+                                     index=INDEX,
+                                     hint="; needs t,x,p,F in s, m, Pa absolute, N, or units "
+                                          "declared in records.yaml")
+    # A gauge reading becomes p_atm + gauge, and the friction takes p - p_atm: the gauge
+    # reading itself, the pressure against the atmosphere on the other side.
+    read += to_si(f"{path}: units", cols, units, QUANTITIES, reference_matters=False)
     t, x, p, force = (cols[c] for c in COLUMNS)
     check_increasing(path, t, lines)
     step = np.diff(t)
     if np.median(p) < 0.5 * P_ATM:
         raise DatasetError(f"{path}: column 'p' has median {np.median(p):g} Pa: it must be the "
-                           f"absolute pressure in Pa (gauge bar x 1e5 + 1e5)")
+                           f"absolute pressure in Pa (gauge bar x 1e5 + 1e5), or its unit "
+                           f"declared in records.yaml (e.g. units: {{p: bar gauge}})")
     dt = float(np.median(step))
     if dt > MAX_SAMPLE_TIME:
         raise DatasetError(f"{path}: column 't' has a median step of {dt:g}: a rig logs far "
                            f"faster than one row per {MAX_SAMPLE_TIME:g} s; t must be in "
-                           f"seconds (ms / 1000)")
+                           f"seconds, or its unit declared (units: {{t: ms}})")
     if np.ptp(x) > MAX_TRAVEL:
         raise DatasetError(f"{path}: column 'x' spans {np.ptp(x):g}: more than "
-                           f"{MAX_TRAVEL:g} m of travel; x must be in metres (mm / 1000)")
+                           f"{MAX_TRAVEL:g} m of travel; x must be in metres, or its unit "
+                           f"declared (units: {{x: mm}})")
     grid = t[0] + dt * np.arange(int(round((t[-1] - t[0]) / dt)) + 1)
     after = np.clip(np.searchsorted(t, grid), 1, t.size - 1)
     nearest = np.minimum(np.abs(t[after] - grid), np.abs(t[after - 1] - grid))

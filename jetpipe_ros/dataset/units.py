@@ -1,4 +1,5 @@
-"""Units declared in ``dataset.yaml``: which are accepted per column and their conversion to SI.
+"""Units declared in ``dataset.yaml`` (and a friction rig's ``records.yaml``): which are accepted
+per column and their conversion to SI.
 
 An experiment CSV is in the contract's units (``t`` [s], ``u`` [V], ``y`` [m], ``v`` [m/s],
 ``p1``/``p2`` [Pa, absolute], ``f_load`` [N]) unless ``dataset.yaml`` declares others::
@@ -20,7 +21,9 @@ weather and the altitude, and a reference that is off shifts both pressures alik
 bias of the pressure sensors would (the diagnosis reads it as one, ``sensor_dynamics``): declare
 it where it is known. Pressure units are absolute unless spelled gauge: ``bar gauge``,
 ``barg``, ``kPa gauge``, ``psig``; ``bar``, ``bar absolute``, ``bara`` are absolute. Units are
-case-sensitive (``MPa`` is not ``mPa``).
+case-sensitive (``MPa`` is not ``mPa``). A friction rig's ``records.yaml`` declares units the
+same way for its columns ``t``, ``x`` (a length), ``p`` and ``F`` (a force):
+:mod:`jetpipe_ros.dataset.friction_rig`.
 """
 
 from __future__ import annotations
@@ -36,18 +39,20 @@ from jetpipe_ros.model.flow import P_ATM
 
 PSI = 6894.757293168361  #: Pa per psi (pound-force per square inch)
 
-#: Per column: (its SI unit, {accepted unit: factor to SI}).
+#: Per quantity but pressure: (its SI unit, {accepted unit: factor to SI}).
 _SCALES: dict[str, tuple[str, dict[str, float]]] = {
-    "t": ("s", {"s": 1.0, "ms": 1e-3, "us": 1e-6}),
-    "u": ("V", {"V": 1.0, "mV": 1e-3}),
-    "y": ("m", {"m": 1.0, "mm": 1e-3, "cm": 1e-2, "um": 1e-6}),
-    "v": ("m/s", {"m/s": 1.0, "mm/s": 1e-3}),
-    "f_load": ("N", {"N": 1.0, "kN": 1e3}),
+    "time": ("s", {"s": 1.0, "ms": 1e-3, "us": 1e-6}),
+    "voltage": ("V", {"V": 1.0, "mV": 1e-3}),
+    "length": ("m", {"m": 1.0, "mm": 1e-3, "cm": 1e-2, "um": 1e-6}),
+    "velocity": ("m/s", {"m/s": 1.0, "mm/s": 1e-3}),
+    "force": ("N", {"N": 1.0, "kN": 1e3}),
 }
 PRESSURES = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6, "bar": 1e5, "mbar": 1e2, "hPa": 1e2, "psi": PSI}
-PRESSURE_COLUMNS = ("p1", "p2")
-#: Columns a unit can be declared for, in contract order.
-COLUMNS = ("t", "u", "y", "p1", "p2", "v", "f_load")
+#: The quantity of each column of an experiment CSV, in contract order: the columns a unit can
+#: be declared for. Other files name their own (a friction rig's: ``t, x, p, F``).
+EXPERIMENT = {"t": "time", "u": "voltage", "y": "length", "p1": "pressure", "p2": "pressure",
+              "v": "velocity", "f_load": "force"}
+COLUMNS = tuple(EXPERIMENT)
 #: The key of a ``units:`` mapping that gives the absolute pressure gauge pressures are relative
 #: to, and the range accepted for it [Pa] (sea level's extremes and 9 km of altitude).
 REFERENCE = "gauge_reference"
@@ -84,32 +89,36 @@ class Unit:
         return f"{self.column}: {self.name} -> {self.si} ({', '.join(how)})"
 
 
-def accepted(column: str) -> str:
-    """The units accepted for ``column``, for messages."""
-    if column in PRESSURE_COLUMNS:
+def accepted(column: str, quantities: Mapping[str, str] = EXPERIMENT) -> str:
+    """The units accepted for ``column`` (of the file whose columns are ``quantities``: column
+    -> quantity), for messages."""
+    if quantities[column] == "pressure":
         return (f"{', '.join(PRESSURES)}, each absolute (e.g. 'bar', 'bar absolute', 'bara') "
                 f"or gauge (e.g. 'bar gauge', 'barg', 'kPa gauge', 'psig')")
-    return ", ".join(_SCALES[column][1])
+    return ", ".join(_SCALES[quantities[column]][1])
 
 
-def parse(column: str, text: Any, reference: float = P_ATM) -> Unit:
+def parse(column: str, text: Any, reference: float = P_ATM,
+          quantities: Mapping[str, str] = EXPERIMENT) -> Unit:
     """The unit ``text`` declared for ``column`` (a gauge pressure relative to ``reference``
-    [Pa]); ValueError (naming both and listing the accepted units) if either is unknown."""
-    if column not in COLUMNS:
+    [Pa]) of a file whose columns are ``quantities`` (column -> quantity); ValueError (naming
+    both and listing the accepted units) if either is unknown."""
+    if column not in quantities:
         raise ValueError(f"unknown column {column!r}; units can be declared for "
-                         f"{', '.join(COLUMNS)} (and {REFERENCE}, the absolute pressure gauge "
-                         f"pressures are relative to)")
+                         f"{', '.join(quantities)} (and {REFERENCE}, the absolute pressure "
+                         f"gauge pressures are relative to)")
     name = " ".join(text.split()) if isinstance(text, str) else None
     if name:
-        if column in PRESSURE_COLUMNS:
+        if quantities[column] == "pressure":
             unit = _pressure(column, name, reference)
             if unit is not None:
                 return unit
         else:
-            si, scales = _SCALES[column]
+            si, scales = _SCALES[quantities[column]]
             if name in scales:
                 return Unit(column, name, si, scales[name])
-    raise ValueError(f"column {column!r}: unknown unit {text!r}; accepted: {accepted(column)}")
+    raise ValueError(f"column {column!r}: unknown unit {text!r}; accepted: "
+                     f"{accepted(column, quantities)}")
 
 
 def _spelling(name: str) -> tuple[float, bool] | None:
@@ -153,9 +162,11 @@ def gauge_reference(text: Any) -> float:
     return value
 
 
-def declared(where: str, raw: Any) -> dict[str, str]:
-    """Validate a ``units:`` mapping (column -> unit) read at ``where``; return it as a dict.
-    Raise DatasetError naming ``where``, the column and the accepted units."""
+def declared(where: str, raw: Any, quantities: Mapping[str, str] = EXPERIMENT
+             ) -> dict[str, str]:
+    """Validate a ``units:`` mapping (column -> unit) read at ``where`` for a file whose columns
+    are ``quantities``; return it as a dict. Raise DatasetError naming ``where``, the column and
+    the accepted units."""
     if raw is None:
         return {}
     if not isinstance(raw, Mapping):
@@ -167,30 +178,34 @@ def declared(where: str, raw: Any) -> dict[str, str]:
             if column == REFERENCE:
                 gauge_reference(text)
             else:
-                parse(column, text)
+                parse(column, text, quantities=quantities)
         except ValueError as exc:
             raise DatasetError(f"{where}: {exc}") from None
         out[column] = text
     return out
 
 
-def to_si(where: str, cols: dict[str, np.ndarray], units: Mapping[str, str] | None) -> list[str]:
-    """Convert the columns of ``cols`` (in place) from the declared ``units`` to SI; return one
-    note per conversion. Columns declared but absent are ignored (a dataset-wide declaration
-    covers experiments without that sensor). A gauge pressure without a declared
-    ``gauge_reference`` gets the model's atmosphere, and its note says so."""
-    units = declared(where, units)
+def to_si(where: str, cols: dict[str, np.ndarray], units: Mapping[str, str] | None,
+          quantities: Mapping[str, str] = EXPERIMENT, *, reference_matters: bool = True
+          ) -> list[str]:
+    """Convert the columns of ``cols`` (in place) from the declared ``units`` to SI (the
+    columns' quantities: ``quantities``); return one note per conversion. Columns declared but
+    absent are ignored (a dataset-wide declaration covers experiments without that sensor). A
+    gauge pressure without a declared ``gauge_reference`` gets the model's atmosphere, and its
+    note says so unless ``reference_matters`` is False (a file whose pressure is only used
+    against that same atmosphere, as a friction rig's is: the reference cancels)."""
+    units = declared(where, units, quantities)
     given = REFERENCE in units
     reference = gauge_reference(units[REFERENCE]) if given else P_ATM
     notes = []
     for column, text in units.items():
         if column == REFERENCE:
             continue
-        unit = parse(column, text, reference)
+        unit = parse(column, text, reference, quantities)
         if column in cols and not unit.identity:
             cols[column] = unit.convert(cols[column])
             assumed = (f"; the ambient pressure the gauge is relative to {ASSUMED}: a "
                        f"reference off by some kPa reads as a common bias of the pressure "
-                       f"sensors") if unit.offset and not given else ""
+                       f"sensors") if unit.offset and not given and reference_matters else ""
             notes.append(unit.note() + assumed)
     return notes
