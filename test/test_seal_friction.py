@@ -421,3 +421,14 @@ def test_a_wrong_unit_declaration_names_the_field(tmp_path, units, message):
         f"units: {units}\nrecords:\n  - file: PK_1bar.csv\n    bore: 0.025\n")
     with pytest.raises(DatasetError, match=re.escape(message)):
         read_records(tmp_path)
+
+
+def test_a_seals_name_becomes_a_file_name_of_its_own():
+    """A seal named with a slash or a space gets a file in OUT, not in a folder that does not
+    exist; two names that become the same file are numbered."""
+    from jetpipe_ros.identify.seal_cli import _seal_file
+    taken: dict[Path, str] = {}
+    for seal, name in [("O-ring", "friction-O-ring.yaml"), ("PK 2/3", "friction-PK_2_3.yaml"),
+                       ("PK_2_3", "friction-PK_2_3-2.yaml"), ("", "friction-seal.yaml")]:
+        assert _seal_file(seal, taken) == name
+        taken[Path("out") / name] = seal

@@ -10,6 +10,7 @@ together at the end: all or, on an error, none.
 from __future__ import annotations
 
 import multiprocessing
+import re
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
@@ -60,6 +61,18 @@ def _fits(tasks: list[tuple[str, str]], trained: dict[str, list], jobs: int
             pool.shutdown(cancel_futures=True)
 
 
+def _seal_file(seal: str, taken: dict) -> str:
+    """``friction-<seal>.yaml``, the seal's name made a file name (a character other than a
+    letter, digit, ``.``, ``-`` or ``_`` becomes ``_``), numbered if that name is taken."""
+    stem = "friction-" + (re.sub(r"[^\w.-]+", "_", seal) or "seal")
+    names = {Path(path).name for path in taken}
+    name, k = f"{stem}.yaml", 1
+    while name in names:
+        k += 1
+        name = f"{stem}-{k}.yaml"
+    return name
+
+
 def _run(args) -> int:
     from jetpipe_ros import fileio
     from jetpipe_ros.dataset import DatasetError, grouped_notes, read_dataset, read_records
@@ -102,7 +115,7 @@ def _run(args) -> int:
                    out / "report.html": html_report(results, doc)}
     if len(results) > 1:
         for res in results:
-            files[out / f"friction-{res.seal or 'seal'}.yaml"] = params_yaml(res, base)
+            files[out / _seal_file(res.seal, files)] = params_yaml(res, base)
     for res in results:
         for prep in res.preps:
             files[out / "prediction" / f"{prep.record.name}.csv"] = prediction_csv(res, prep)
