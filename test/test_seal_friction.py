@@ -432,3 +432,20 @@ def test_a_seals_name_becomes_a_file_name_of_its_own():
                        ("PK_2_3", "friction-PK_2_3-2.yaml"), ("", "friction-seal.yaml")]:
         assert _seal_file(seal, taken) == name
         taken[Path("out") / name] = seal
+
+
+def test_the_report_gives_the_parameters_in_units_and_marks_those_a_bound_set():
+    """The selected fit's table: levels in N, v_s and delta in mm/s and mm, and a value the
+    fit's range stopped (a viscous coefficient at 0, a Stribeck velocity at 50 mm/s) said so;
+    a value near but off its bound (ratio 0.209 against 0.2) is not."""
+    from jetpipe_ros.identify.seal import _from_values
+    from jetpipe_ros.identify.seal_report import _parameter_table
+    values = {**TRUTH, "exit.viscous": 0.0, "entry.stribeck_velocity": 0.05,
+              "entry.ratio": 0.209, "presliding_displacement": 7.8e-4,
+              "presliding_spread": 0.0225}
+    table = _parameter_table(_from_values("maxwell_slip", values))
+    rows = dict(re.findall(r"<tr><td>([^<]+)</td><td>[^<]*</td>(.*?)</tr>", table))
+    assert rows["viscous coefficient F_v"] == "<td>0 (at its bound)</td><td>20</td>"
+    assert rows["Stribeck velocity v_s"] == "<td>3</td><td>50 (at its bound)</td>"
+    assert rows["breakaway over sliding level F_S / F_C"] == "<td>0.6</td><td>0.209</td>"
+    assert rows["pre-sliding displacement delta"] == "<td colspan='2'>0.78</td>"

@@ -286,6 +286,15 @@ def _names(form: str) -> list[str]:
         [q for q, _, _ in _DYNAMIC.get(form, ())]
 
 
+def parameter_bounds(form: str) -> dict[str, tuple[float, float, bool]]:
+    """The range each parameter of ``form`` is fitted in, by name, in the units of
+    :attr:`FormFit.values`, and whether it is fitted as its log10 (the dynamic ones)."""
+    lo, hi = _bounds(form)
+    dynamic = {q for q, _, _ in _DYNAMIC.get(form, ())}
+    return {name: (10.0 ** a, 10.0 ** b, True) if name in dynamic else (float(a), float(b), False)
+            for name, a, b in zip(_names(form), lo, hi)}
+
+
 def _bounds(form: str) -> tuple[np.ndarray, np.ndarray]:
     spans = [(lo, hi) for _ in DIRECTIONS for _, lo, hi in _PER_DIRECTION] + \
         [(lo, hi) for _, lo, hi in _DYNAMIC.get(form, ())]

@@ -11,11 +11,24 @@ import numpy as np
 
 from jetpipe_ros.dataset.friction_rig import RigRecord
 from jetpipe_ros.figures import png_img, pyplot
-from jetpipe_ros.identify.seal import (FORMS, Prepared, SealResult, measured_presliding,
-                                       reverses, since_reversal)
+from jetpipe_ros.identify.seal import (DIRECTIONS, FORMS, FormFit, Prepared, SealResult,
+                                       measured_presliding, parameter_bounds, reverses,
+                                       since_reversal)
 from jetpipe_ros.model.params import ModelParams
 
 SCHEMA = "jetpipe.friction/1"
+#: The report's words, unit and scale from the fit's units for each parameter.
+_SHOWN = {"level": ("sliding level F_C at 0 bar gauge", "N", 1.0),
+          "slope": ("its rise per bar of p1 + p2 - 2 p_atm", "N/bar", 1.0),
+          "ratio": ("breakaway over sliding level F_S / F_C", "", 1.0),
+          "stribeck_velocity": ("Stribeck velocity v_s", "mm/s", 1e3),
+          "viscous": ("viscous coefficient F_v", "N s/m", 1.0),
+          "presliding_displacement": ("pre-sliding displacement delta", "mm", 1e3),
+          "presliding_spread": ("spread of the elements' displacements", "", 1.0),
+          "bristle_stiffness": ("bristle stiffness sigma_0", "N/m", 1.0)}
+#: A value this close to a bound of its fitted range, relative to the bound (to the range for a
+#: bound at 0; in decades for a log-fitted one), is flagged: the bound placed it, not the data.
+_AT_BOUND = 1e-3
 
 
 def _median(values: list[float]) -> float:
@@ -151,18 +164,47 @@ def html_report(results: list[SealResult], doc: dict[str, Any]) -> str:
                              if s else "<td>-</td>")
             parts.append(f"<tr><td>{html.escape(prep.record.name)}</td>{''.join(cells)}</tr>")
         parts.append("</table><p>NRMSE / R^2 within direction, held-out moving samples.</p>")
-        fit = res.seal_fits[res.selected]
-        lines = [f"{k}: {v:.5g}" for k, v in fit.values.items()]
-        if fit.profile.shape[1]:
-            lines += [f"bore profile: {fit.profile.shape[1]} knots over "
-                      f"{fit.profile[0, 0] * 1e3:.1f}-{fit.profile[0, -1] * 1e3:.1f} mm, "
-                      f"factors exit {fit.profile[1].min():.2f}-{fit.profile[1].max():.2f}, "
-                      f"entry {fit.profile[2].min():.2f}-{fit.profile[2].max():.2f}"]
-        parts.append("<pre>" + html.escape("\n".join(lines)) + "</pre>")
+        parts.append(_parameter_table(res.seal_fits[res.selected]))
         parts.append(png_img(loop_figure(res, res.preps), dpi=80))
     parts.append("<h2>Notes</h2><pre>" + html.escape("\n".join(doc["notes"])) + "</pre>")
     parts.append("</body></html>")
     return "".join(parts)
+
+
+def _parameter_table(fit: FormFit) -> str:
+    """The selected fit's parameters as a table with units, per direction where they are, a
+    value its range's bound set marked so; the bore profile in a line below."""
+    bounds = parameter_bounds(fit.form)
+
+    def shown(name: str) -> str:
+        value, (lo, hi, logged) = fit.values[name], bounds[name]
+        if logged:
+            value, lo, hi = math.log10(value), math.log10(lo), math.log10(hi)
+        at_bound = any(abs(value - b) <= _AT_BOUND * max(abs(b), _AT_BOUND * (hi - lo))
+                       for b in (lo, hi))
+        return (f"{fit.values[name] * _SHOWN[name.split('.')[-1]][2]:.4g}"
+                f"{' (at its bound)' if at_bound else ''}")
+
+    rows = []
+    for quantity, (words, unit, _) in _SHOWN.items():
+        per = [f"{d}.{quantity}" for d in DIRECTIONS]
+        if all(name in fit.values for name in per):
+            cells = "".join(f"<td>{shown(name)}</td>" for name in per)
+        elif quantity in fit.values:
+            cells = f"<td colspan='2'>{shown(quantity)}</td>"
+        else:
+            continue
+        rows.append(f"<tr><td>{html.escape(words)}</td><td>{unit}</td>{cells}</tr>")
+    table = ("<table><tr><th>parameter</th><th>unit</th>" +
+             "".join(f"<th>{d} (v {'>' if d == 'exit' else '<'} 0)</th>" for d in DIRECTIONS) +
+             "</tr>" + "".join(rows) + "</table>")
+    if fit.profile.shape[1]:
+        table += (f"<p>Bore profile: {fit.profile.shape[1]} knots over "
+                  f"{fit.profile[0, 0] * 1e3:.1f} to {fit.profile[0, -1] * 1e3:.1f} mm of the "
+                  f"records' position, factors on the level exit "
+                  f"{fit.profile[1].min():.2f}-{fit.profile[1].max():.2f}, entry "
+                  f"{fit.profile[2].min():.2f}-{fit.profile[2].max():.2f}.</p>")
+    return table
 
 
 def params_yaml(res: SealResult, base: ModelParams) -> str:
