@@ -161,7 +161,7 @@ def force_error(params: ModelParams, rec: Record, dt: float
     viscous = np.zeros(rec.t.size)
     for k in np.flatnonzero(sliding):
         f_s, v_s, f_v, f_c = scaled_parameters(c.planes, c.profile, np.sign(v[k]), y[k],
-                                               p1[k], p2[k])
+                                               p1[k], p2[k], c.friction_floor)
         static[k] = stribeck_force(v[k], f_s, v_s, f_c)
         viscous[k] = f_v * v[k]
         err[k] = c.mass * a[k] - (c.area * (p1[k] - p2[k]) - rec.f_load[k] - static[k]

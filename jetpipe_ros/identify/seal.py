@@ -52,8 +52,9 @@ from jetpipe_ros.identify.experiments import Recording
 from jetpipe_ros.identify.friction import WINDOW as TEST_WINDOW
 from jetpipe_ros.identify.friction import friction_force
 from jetpipe_ros.model.flow import P_ATM
-from jetpipe_ros.model.friction import (LUGRE, MAXWELL_SLIP, STATIC, element_slips,
-                                        prescribed_friction, presliding_displacement)
+from jetpipe_ros.model.friction import (LEVEL_FLOOR, LUGRE, MAXWELL_SLIP, STATIC,
+                                        element_slips, prescribed_friction,
+                                        presliding_displacement)
 from jetpipe_ros.model.params import MAX_KNOTS, PROFILE_HIGH, PROFILE_LOW, ModelParams
 
 FORMS = ("coulomb_viscous", "static", "lugre", "maxwell_slip")
@@ -172,13 +173,13 @@ class FormFit:
         return prescribed_friction(_KERNEL_FORM[self.form], self.planes,
                                    self.profile if profile is None else profile, prep.v,
                                    prep.record.x, prep.p1, prep.p2, prep.record.dt,
-                                   self.sigma0, 0.0, self.slips)
+                                   self.sigma0, 0.0, self.slips, LEVEL_FLOOR)
 
     def params(self, base: ModelParams, centre: float = 0.0) -> ModelParams:
-        """``base`` with this fit's planes, its bore profile (knots shifted by ``-centre``
-        [m]: the records' position that becomes the model's y = 0) and, for a dynamic form,
-        its friction_dynamics."""
-        changes: dict[str, Any] = {}
+        """``base`` with this fit's planes (held at the rig's floor, :data:`LEVEL_FLOOR`, not
+        the paper's), its bore profile (knots shifted by ``-centre`` [m]: the records' position
+        that becomes the model's y = 0) and, for a dynamic form, its friction_dynamics."""
+        changes: dict[str, Any] = {"friction.floor": LEVEL_FLOOR}
         if self.profile.shape[1]:
             changes["friction.profile.position"] = [float(k - centre) for k in self.profile[0]]
             changes["friction.profile.exit"] = [float(f) for f in self.profile[1]]

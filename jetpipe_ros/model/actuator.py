@@ -128,7 +128,7 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
         v02=p["chamber.dead_volume_2"],
         mass=effect("moving_mass", "mass", p["mechanics.mass"]),
         y_max=0.5 * p["mechanics.stroke"], locked=p["mechanics.locked"],
-        regulated=p["chamber.regulated"], planes=planes,
+        regulated=p["chamber.regulated"], planes=planes, friction_floor=p["friction.floor"],
         profile=profile_array(p),
         friction_form=friction_form, sigma0=p["effects.friction_dynamics.bristle_stiffness"],
         sigma1=p["effects.friction_dynamics.bristle_damping"],

@@ -42,8 +42,15 @@ from numba import njit
 #: Coulomb F_C [N]; columns c0, c1, c2.
 BREAKAWAY, STRIBECK, VISCOUS, COULOMB = 0, 1, 2, 3
 
-#: Physical floors: |F_C|, |F_S| >= 1 N, |v_s| >= 1e-4 m/s (docs/model.md).
-MIN_COULOMB = 1.0
+#: The floor on the Stribeck levels |F_C|, |F_S| [N] of the paper's planes (``friction.floor``'s
+#: default): the planes are fitted over the tests' pressures and extrapolate linearly, and the
+#: exit Coulomb plane reaches 0 near p1 = p2 = 8.3 bar. A seal fitted on a friction rig has
+#: levels of a few N or less, some under 1 N, and writes its own floor (LEVEL_FLOOR).
+PAPER_FLOOR = 1.0
+#: The floor a rig-fitted seal is written with [N]: far under any level a load cell resolves,
+#: and above 0, which keeps LuGre's sigma_0 |v| / g finite.
+LEVEL_FLOOR = 1e-3
+#: Floor on the Stribeck velocity |v_s| [m/s].
 MIN_STRIBECK = 1e-4
 
 
@@ -66,12 +73,13 @@ def plane(c: np.ndarray, p1_bar: float | np.ndarray, p2_bar: float | np.ndarray
 
 
 @njit(cache=True, error_model="numpy")
-def friction_parameters(planes: np.ndarray, direction: float, p1: float, p2: float
-                        ) -> tuple[float, float, float, float]:
+def friction_parameters(planes: np.ndarray, direction: float, p1: float, p2: float,
+                        floor: float = PAPER_FLOOR) -> tuple[float, float, float, float]:
     """Signed (F_S, v_s, F_v, F_C) for motion in ``direction`` (+1 exit, -1 entry).
 
     ``planes`` has shape (2, 4, 3): [entry, exit] x [F_S, v_s, F_v, F_C] x [c0, c1, c2];
-    ``p1``, ``p2`` are chamber pressures [Pa].
+    ``p1``, ``p2`` are chamber pressures [Pa]; |F_S| and |F_C| are held at ``floor`` [N] or
+    more (``friction.floor``), |v_s| at :data:`MIN_STRIBECK`, F_v at 0.
     """
     a = p1 * 1e-5
     b = p2 * 1e-5
@@ -84,8 +92,8 @@ def friction_parameters(planes: np.ndarray, direction: float, p1: float, p2: flo
     f_v = plane(planes[phase, VISCOUS], a, b)
     f_c = plane(planes[phase, COULOMB], a, b)
     s = 1.0 if phase == 1 else -1.0
-    f_c = s * max(s * f_c, MIN_COULOMB)
-    f_s = s * max(s * f_s, MIN_COULOMB)
+    f_c = s * max(s * f_c, floor)
+    f_s = s * max(s * f_s, floor)
     v_s = s * max(s * v_s, MIN_STRIBECK)
     f_v = max(f_v, 0.0)
     return f_s, v_s, f_v, f_c
@@ -103,10 +111,11 @@ def level_factors(profile: np.ndarray, y: float) -> tuple[float, float]:
 
 @njit(cache=True, error_model="numpy")
 def scaled_parameters(planes: np.ndarray, profile: np.ndarray, direction: float, y: float,
-                      p1: float, p2: float) -> tuple[float, float, float, float]:
-    """:func:`friction_parameters` with F_S and F_C scaled by the bore profile's factor of
-    ``direction`` at piston position ``y`` [m] (:func:`level_factors`)."""
-    f_s, v_s, f_v, f_c = friction_parameters(planes, direction, p1, p2)
+                      p1: float, p2: float, floor: float) -> tuple[float, float, float, float]:
+    """:func:`friction_parameters` (levels held at ``floor`` [N] or more) with F_S and F_C
+    scaled by the bore profile's factor of ``direction`` at piston position ``y`` [m]
+    (:func:`level_factors`)."""
+    f_s, v_s, f_v, f_c = friction_parameters(planes, direction, p1, p2, floor)
     exit_factor, entry_factor = level_factors(profile, y)
     factor = exit_factor if direction > 0.0 else entry_factor
     return factor * f_s, v_s, f_v, factor * f_c
@@ -167,14 +176,15 @@ def presliding_displacement(slips: np.ndarray, fraction: float = 0.9) -> float:
 
 @njit(cache=True, error_model="numpy")
 def sliding_levels(planes: np.ndarray, profile: np.ndarray, v: float, y: float, p1: float,
-                   p2: float) -> tuple[float, float, float, float]:
+                   p2: float, floor: float) -> tuple[float, float, float, float]:
     """Magnitudes of the Stribeck curve (Eq. 18 without its viscous term) [N] of the exit and
     entry directions at velocity ``v`` [m/s], piston position ``y`` [m] (the bore ``profile``,
-    :func:`level_factors`) and pressures ``p1``, ``p2`` [Pa], and the viscous coefficients
-    F_v [N s/m] of both: (g_exit, g_entry, f_v_exit, f_v_entry)."""
-    f_s, v_s, f_v_exit, f_c = scaled_parameters(planes, profile, 1.0, y, p1, p2)
+    :func:`level_factors`) and pressures ``p1``, ``p2`` [Pa] (levels held at ``floor`` [N] or
+    more), and the viscous coefficients F_v [N s/m] of both: (g_exit, g_entry, f_v_exit,
+    f_v_entry)."""
+    f_s, v_s, f_v_exit, f_c = scaled_parameters(planes, profile, 1.0, y, p1, p2, floor)
     g_exit = abs(stribeck_force(v, f_s, v_s, f_c))
-    f_s, v_s, f_v_entry, f_c = scaled_parameters(planes, profile, -1.0, y, p1, p2)
+    f_s, v_s, f_v_entry, f_c = scaled_parameters(planes, profile, -1.0, y, p1, p2, floor)
     g_entry = abs(stribeck_force(v, f_s, v_s, f_c))
     return g_exit, g_entry, f_v_exit, f_v_entry
 
@@ -211,10 +221,11 @@ def maxwell_slip_force(s: np.ndarray, g_exit: float, g_entry: float) -> float:
 @njit(cache=True, error_model="numpy")
 def prescribed_friction(form: int, planes: np.ndarray, profile: np.ndarray, v: np.ndarray,
                         y: np.ndarray, p1: np.ndarray, p2: np.ndarray, h: float, sigma0: float,
-                        sigma1: float, slips: np.ndarray) -> np.ndarray:
+                        sigma1: float, slips: np.ndarray, floor: float) -> np.ndarray:
     """Friction force [N] along a prescribed motion (a friction rig drives the rod): velocity
     ``v`` [m/s], position ``y`` [m] (for the bore ``profile``, :func:`level_factors`) and
-    pressures ``p1``, ``p2`` [Pa] sampled every ``h`` [s]; the dynamic
+    pressures ``p1``, ``p2`` [Pa] sampled every ``h`` [s], levels held at ``floor`` [N] or
+    more; the dynamic
     forms' state starts relaxed and is integrated from the velocity. ``form`` is
     :data:`STATIC` (Eq. 18 in the direction of ``v``; 0 where v = 0), :data:`LUGRE`
     (``sigma0`` [N/m], ``sigma1`` [N s/m]) or :data:`MAXWELL_SLIP` (``slips`` [m])."""
@@ -224,7 +235,7 @@ def prescribed_friction(form: int, planes: np.ndarray, profile: np.ndarray, v: n
     s = np.zeros(slips.shape[0])
     for k in range(n):
         g_exit, g_entry, f_v_exit, f_v_entry = sliding_levels(planes, profile, v[k], y[k],
-                                                              p1[k], p2[k])
+                                                              p1[k], p2[k], floor)
         f_v = f_v_exit if v[k] > 0.0 else f_v_entry
         if form == LUGRE:
             d = v[k] if v[k] != 0.0 else z

@@ -141,6 +141,7 @@ class Constants(NamedTuple):
     locked: bool  #: piston clamped
     regulated: bool  #: chamber pressures held (ideal regulators)
     planes: np.ndarray  #: friction planes (2, 4, 3)
+    friction_floor: float  #: least Stribeck level |F_C|, |F_S| [N]
     profile: np.ndarray  #: bore profile (3, K) of the friction level; (3, 0) = none
     friction_form: int  #: :data:`~jetpipe_ros.model.friction.STATIC`, LUGRE or MAXWELL_SLIP
     sigma0: float  #: bristle stiffness [N/m]
@@ -728,7 +729,8 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
                     p_s = supply_step(p_s, c.p_supply, c.line_conductance, drawn, line_decay)
             if move:
                 y, v, stuck, z, friction = _mechanics_substep(
-                    planes, c.profile, c.area * (p1 - p2) - f_l, p1, p2, h, c.mass, c.y_max,
+                    planes, c.friction_floor, c.profile, c.area * (p1 - p2) - f_l, p1, p2, h,
+                    c.mass, c.y_max,
                     c.friction_form, c.sigma0, c.sigma1, c.slips, elements, y, v, stuck, z,
                     friction)
             elif c.locked:
@@ -755,23 +757,25 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _mechanics_substep(planes: np.ndarray, profile: np.ndarray, f_a: float, p1: float,
-                       p2: float, h: float, mass: float, y_max: float, form: int, sigma0: float,
-                       sigma1: float, slips: np.ndarray, elements: np.ndarray, y: float,
-                       v: float, stuck: float, z: float, friction: float
+def _mechanics_substep(planes: np.ndarray, floor: float, profile: np.ndarray, f_a: float,
+                       p1: float, p2: float, h: float, mass: float, y_max: float, form: int,
+                       sigma0: float, sigma1: float, slips: np.ndarray, elements: np.ndarray,
+                       y: float, v: float, stuck: float, z: float, friction: float
                        ) -> tuple[float, float, float, float, float]:
     """Advance the piston one sub-step (Eq. 14 with Eq. 15-18 friction or a dynamic form).
 
     ``f_a`` [N] is the applied force S (p1 - p2) - F_L at pressures ``p1``, ``p2`` [Pa];
-    ``planes``, ``profile``, ``mass``, ``y_max``, ``form`` (``friction_form``), ``sigma0``,
-    ``sigma1`` and ``slips`` are the fields of :class:`Constants` (the bore profile's factors
+    ``planes``, ``floor`` (``friction_floor``), ``profile``, ``mass``, ``y_max``, ``form``
+    (``friction_form``), ``sigma0``, ``sigma1`` and ``slips`` are the fields of
+    :class:`Constants` (the bore profile's factors
     taken at the sub-step's starting position). From position ``y`` [m], velocity ``v``
     [m/s], the stuck flag, the LuGre bristle deflection ``z`` [m] and the friction force [N],
     returns the new (y, v, stuck, z, friction); the Maxwell-slip elements' normalised
     deflections ``elements`` advance in place.
     """
     if form == MAXWELL_SLIP:
-        g_exit, g_entry, f_v_exit, f_v_entry = sliding_levels(planes, profile, v, y, p1, p2)
+        g_exit, g_entry, f_v_exit, f_v_entry = sliding_levels(planes, profile, v, y, p1, p2,
+                                                              floor)
         d = v if v != 0.0 else f_a
         f_v = f_v_exit if d > 0.0 else f_v_entry
         # Elements that stay elastic over the step are springs, implicit in the velocity:
@@ -795,7 +799,7 @@ def _mechanics_substep(planes: np.ndarray, profile: np.ndarray, f_a: float, p1: 
     elif form == LUGRE:
         d = math.copysign(1.0, v) if v != 0.0 else (math.copysign(1.0, f_a) if f_a != 0.0
                                                      else math.copysign(1.0, z))
-        f_s, v_s, f_v, f_c = scaled_parameters(planes, profile, d, y, p1, p2)
+        f_s, v_s, f_v, f_c = scaled_parameters(planes, profile, d, y, p1, p2, floor)
         g = abs(stribeck_force(v, f_s, v_s, f_c))
         z_new, a = lugre_step(z, v, g, sigma0, h)
         # Bristle force sigma0 z + sigma1 dz/dt with dz/dt = v - a z; v implicit.
@@ -806,14 +810,14 @@ def _mechanics_substep(planes: np.ndarray, profile: np.ndarray, f_a: float, p1: 
     else:
         if stuck != 0.0:
             d = math.copysign(1.0, f_a)
-            f_s, v_s, f_v, f_c = scaled_parameters(planes, profile, d, y, p1, p2)
+            f_s, v_s, f_v, f_c = scaled_parameters(planes, profile, d, y, p1, p2, floor)
             if abs(f_a) <= abs(f_s):
                 return y, 0.0, stuck, z, f_a
             stuck = 0.0
             v = 0.0
         else:
             d = math.copysign(1.0, v) if v != 0.0 else math.copysign(1.0, f_a)
-            f_s, v_s, f_v, f_c = scaled_parameters(planes, profile, d, y, p1, p2)
+            f_s, v_s, f_v, f_c = scaled_parameters(planes, profile, d, y, p1, p2, floor)
         f_st = stribeck_force(v, f_s, v_s, f_c)
         # Times the reciprocal, which does not wait on the Stribeck term (see pressure_rates).
         v_new = (v + h / mass * (f_a - f_st)) * (1.0 / (1.0 + h * f_v / mass))

@@ -22,7 +22,7 @@ from jetpipe_ros.fileio import read_yaml, section_applies
 from jetpipe_ros.model.chamber import chamber_volumes
 from jetpipe_ros.model.errors import ParameterError
 from jetpipe_ros.model.flow import N_TERMS, TABLE_P, TABLE_SIZE, TABLE_U
-from jetpipe_ros.model.friction import FRICTION_FORMS, MAX_ELEMENTS
+from jetpipe_ros.model.friction import FRICTION_FORMS, LEVEL_FLOOR, MAX_ELEMENTS, PAPER_FLOOR
 
 NODE_NAME = "actuator_sim"
 
@@ -170,9 +170,13 @@ for _phase, _planes in FRICTION_PLANES.items():
             f"{_phase} phase {_qty.replace('_', ' ')} plane c0 + c1 p1 + c2 p2 (p in bar)",
             FRICTION_UNITS[_qty], length=3))
 
-# The bore profile of the friction level (model/friction.py, level_factors): factors on each
-# direction's Stribeck curve at knots along the piston position; one knot at factor 1 = none.
+# The planes' floor (model/friction.py, friction_parameters) and the bore profile of the
+# friction level (level_factors): factors on each direction's Stribeck curve at knots along the
+# piston position; one knot at factor 1 = none.
 _BASE += [
+    _p("friction.floor", PAPER_FLOOR, "Least breakaway and Coulomb level |F_S|, |F_C| the "
+       "planes give (they extrapolate linearly beyond the tests' pressures; the paper's exit "
+       "Coulomb plane reaches 0 near p1 = p2 = 8.3 bar)", "N", LEVEL_FLOOR, 100.0),
     _p("friction.profile.position", [0.0], "Bore profile: the knots' piston positions y, "
        "increasing (as many as the factors)", "m"),
     _p("friction.profile.exit", [1.0], "Bore profile: factor on the exit phase's Stribeck "
