@@ -52,7 +52,6 @@ PRESSURES = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6, "bar": 1e5, "mbar": 1e2, "hPa": 
 #: be declared for. Other files name their own (a friction rig's: ``t, x, p, F``).
 EXPERIMENT = {"t": "time", "u": "voltage", "y": "length", "p1": "pressure", "p2": "pressure",
               "v": "velocity", "f_load": "force"}
-COLUMNS = tuple(EXPERIMENT)
 #: The key of a ``units:`` mapping that gives the absolute pressure gauge pressures are relative
 #: to, and the range accepted for it [Pa] (sea level's extremes and 9 km of altitude).
 REFERENCE = "gauge_reference"

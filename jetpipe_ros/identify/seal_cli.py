@@ -2,7 +2,7 @@
 actuator's own friction tests (a dataset).
 
 The fits (every form on every seal: :func:`jetpipe_ros.identify.seal.fit_seal_form`) run on
-``--workers`` processes, each finished one said on stderr with the time since the start. Every
+``--jobs`` processes, each finished one said on stderr with the time since the start. Every
 output (``friction.yaml``, ``friction.json``, ``report.html``, ``prediction/*.csv``) is written
 together at the end: all or, on an error, none.
 """
