@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import multiprocessing
 import re
+import signal
 from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 from threadpoolctl import threadpool_limits
@@ -41,24 +41,33 @@ def _fit_all(seals: dict[str, list], split: float, jobs: int, progress: Progress
 def _fits(tasks: list[tuple[str, str]], trained: dict[str, list], jobs: int
           ) -> Iterator[tuple[str, str, tuple]]:
     """(seal, form, result) of each fit as it ends: in this process with one job, else on a
-    pool of ``jobs`` processes, spawned (a forked one would inherit numba's and BLAS's
-    threads) and each held to one BLAS thread as the command is (more would oversubscribe the
-    cores); an error in a fit is raised here and the fits not started are dropped."""
+    pool of ``jobs`` processes (:func:`_worker`). An error in a fit is raised here; then, as on
+    Ctrl-C, the pool's processes are terminated at once, the fits running in them dropped."""
     from jetpipe_ros.identify.seal import fit_seal_form
 
     if jobs == 1:
         for seal, form in tasks:
             yield seal, form, fit_seal_form(seal, form, trained[seal])
         return
-    with ProcessPoolExecutor(min(jobs, len(tasks)), multiprocessing.get_context("spawn"),
-                             initializer=threadpool_limits, initargs=(1,)) as pool:
-        futures = {pool.submit(fit_seal_form, seal, form, trained[seal]): (seal, form)
-                   for seal, form in tasks}
-        try:
-            for future in as_completed(futures):
-                yield *futures[future], future.result()
-        finally:
-            pool.shutdown(cancel_futures=True)
+    work = [(seal, form, trained[seal]) for seal, form in tasks]
+    with multiprocessing.get_context("spawn").Pool(min(jobs, len(tasks)), _worker) as pool:
+        yield from pool.imap_unordered(_fit_task, work)
+
+
+def _worker() -> None:
+    """Set up a fitting process: spawned (a forked one would inherit numba's and BLAS's
+    threads), held to one BLAS thread as the command is (more would oversubscribe the cores),
+    and deaf to Ctrl-C, which the command answers by terminating the pool."""
+    threadpool_limits(1)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _fit_task(task: tuple[str, str, list]) -> tuple[str, str, tuple]:
+    """One fit in a pool process: (seal, form, :func:`fit_seal_form`'s result)."""
+    from jetpipe_ros.identify.seal import fit_seal_form
+
+    seal, form, trained = task
+    return seal, form, fit_seal_form(seal, form, trained)
 
 
 def _seal_file(seal: str, taken: dict) -> str:
