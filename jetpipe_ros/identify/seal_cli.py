@@ -43,13 +43,10 @@ def _fits(tasks: list[tuple[str, str]], trained: dict[str, list], jobs: int
     """(seal, form, result) of each fit as it ends: in this process with one job, else on a
     pool of ``jobs`` processes (:func:`_worker`). An error in a fit is raised here; then, as on
     Ctrl-C, the pool's processes are terminated at once, the fits running in them dropped."""
-    from jetpipe_ros.identify.seal import fit_seal_form
-
-    if jobs == 1:
-        for seal, form in tasks:
-            yield seal, form, fit_seal_form(seal, form, trained[seal])
-        return
     work = [(seal, form, trained[seal]) for seal, form in tasks]
+    if jobs == 1:
+        yield from map(_fit_task, work)
+        return
     with multiprocessing.get_context("spawn").Pool(min(jobs, len(tasks)), _worker) as pool:
         yield from pool.imap_unordered(_fit_task, work)
 
@@ -63,7 +60,7 @@ def _worker() -> None:
 
 
 def _fit_task(task: tuple[str, str, list]) -> tuple[str, str, tuple]:
-    """One fit in a pool process: (seal, form, :func:`fit_seal_form`'s result)."""
+    """One fit, in a pool process or this one: (seal, form, :func:`fit_seal_form`'s result)."""
     from jetpipe_ros.identify.seal import fit_seal_form
 
     seal, form, trained = task
