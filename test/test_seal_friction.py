@@ -247,6 +247,12 @@ def test_friction_command_fails_in_one_line_and_writes_nothing(tmp_path, capsys)
     ("    area: 1e-3\n    bore: 0.02\n", "exactly one of"),
     ("    bore: 0.025\n    role: test\n", "role"),
     ("    bore: -1\n", "bore"),
+    ("    bore: 0.025\nunits: {x: inch}\n",  # units: at the top level
+     "column 'x': unknown unit 'inch'; accepted: m, mm, cm, um"),
+    ("    bore: 0.025\nunits: {p: bar gauge, gauge_reference: 1013 hPa}\n",
+     "gauge_reference is not needed"),
+    ("    bore: 0.025\nunits: {v: mm/s}\n",
+     "unknown column 'v'; units can be declared for t, x, p, F"),
 ])
 def test_records_yaml_errors_name_the_field(tmp_path, entry, message):
     shutil.copy(SEALS / "PK_1bar.csv", tmp_path)
@@ -450,19 +456,6 @@ def test_records_in_their_loggers_units_and_names_read_as_in_si(tmp_path):
     said = " ".join(declared.notes)
     assert "p: bar gauge -> Pa absolute (x 100000, + 100000 Pa)" in said
     assert "F: kN -> N" in said and "x: mm -> m" in said and "assumed" not in said
-
-
-@pytest.mark.parametrize("units, message", [
-    ("{x: inch}", "column 'x': unknown unit 'inch'; accepted: m, mm, cm, um"),
-    ("{p: bar gauge, gauge_reference: 1013 hPa}", "gauge_reference is not needed"),
-    ("{v: mm/s}", "unknown column 'v'; units can be declared for t, x, p, F"),
-])
-def test_a_wrong_unit_declaration_names_the_field(tmp_path, units, message):
-    shutil.copy(SEALS / "PK_1bar.csv", tmp_path)
-    (tmp_path / "records.yaml").write_text(
-        f"units: {units}\nrecords:\n  - file: PK_1bar.csv\n    bore: 0.025\n")
-    with pytest.raises(DatasetError, match=re.escape(message)):
-        read_records(tmp_path)
 
 
 def test_a_seals_name_becomes_a_file_name_of_its_own():
