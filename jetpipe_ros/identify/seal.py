@@ -412,29 +412,80 @@ def fit_form(form: str, preps: list[Prepared], what: str, attempts: int = 3,
     raise DatasetError(f"{what}: the {form} friction fit failed: {error}")
 
 
+class _Levels:
+    """The fit's coordinates of each direction's level line |F_C| = a + b g (g = p1 + p2 -
+    2 p_atm [bar]): with the slope free, the levels at the lowest and highest g the training
+    samples reach, each held at :data:`LEVEL_FLOOR` or more, so the line stays on its physical
+    side over the records' pressures. The kernel holds a level under the floor at the floor,
+    where the friction no longer depends on it: a fit that crossed it would stop there (a
+    Coulomb level at 0 and its friction left to the viscous term), and its numbers would read
+    as a negative friction. With the slope held, the level's lower bound keeps the line above
+    the floor at both ends. The other parameters are the fit's own."""
+
+    def __init__(self, form: str, trained: list[Prepared], free: np.ndarray) -> None:
+        gauge = np.concatenate([(p.p1 + p.p2 - 2 * P_ATM)[p.train] for p in trained]) * 1e-5
+        self.ends = (float(np.min(gauge)), float(np.max(gauge)))
+        names = _names(form)
+        pairs = [(names.index(f"{d}.level"), names.index(f"{d}.slope")) for d in DIRECTIONS]
+        self.lines = [(i, j) for i, j in pairs if free[i] and free[j]
+                      and self.ends[1] - self.ends[0] >= MIN_PRESSURE_SPAN]
+        self.held = [(i, j) for i, j in pairs if free[i] and not free[j]]
+
+    def to_fit(self, theta: np.ndarray) -> np.ndarray:
+        """Parameter vector -> the fit's coordinates."""
+        x = theta.copy()
+        for i, j in self.lines:
+            x[i], x[j] = theta[i] + theta[j] * self.ends[0], theta[i] + theta[j] * self.ends[1]
+        return x
+
+    def from_fit(self, x: np.ndarray) -> np.ndarray:
+        """The fit's coordinates -> parameter vector."""
+        theta = x.copy()
+        for i, j in self.lines:
+            theta[j] = (x[j] - x[i]) / (self.ends[1] - self.ends[0])
+            theta[i] = x[i] - theta[j] * self.ends[0]
+        return theta
+
+    def bounds(self, theta: np.ndarray, lo: np.ndarray, hi: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+        """The fit's bounds: ``lo``/``hi`` with each level line's ends, or a held slope's
+        level, kept at the floor or more (``theta`` gives the held slopes)."""
+        lo, hi = lo.copy(), hi.copy()
+        for i, j in self.lines:
+            lo[i] = lo[j] = LEVEL_FLOOR
+            hi[j] = hi[i]
+        for i, j in self.held:
+            lo[i] = max(lo[i], LEVEL_FLOOR - min(theta[j] * g for g in self.ends))
+        return lo, hi
+
+
 def _least_squares(form: str, trained: list[Prepared], held: np.ndarray, free: np.ndarray,
                    lo: np.ndarray, hi: np.ndarray, max_nfev: int,
                    profile: np.ndarray | None = None) -> tuple[np.ndarray | None, str]:
     """The parameter vector fitted from ``held`` (its ``free`` entries within ``lo``-``hi``,
-    the others held) with the bore ``profile`` held, or None and why it failed."""
+    each level line above the floor over the training pressures: :class:`_Levels`, the others
+    held) with the bore ``profile`` held, or None and why it failed."""
+    levels = _Levels(form, trained, free)
+    lo, hi = levels.bounds(held, lo, hi)
+    start = levels.to_fit(held)
 
     def residual(x: np.ndarray) -> np.ndarray:
-        theta = held.copy()
-        theta[free] = x
-        fit = _build(form, theta, profile)
+        coords = start.copy()
+        coords[free] = x
+        fit = _build(form, levels.from_fit(coords), profile)
         return np.concatenate([(fit.predict(p) - p.friction)[p.train] for p in trained])
 
     try:
-        sol = optimize.least_squares(residual, np.clip(held[free], lo[free], hi[free]),
+        sol = optimize.least_squares(residual, np.clip(start[free], lo[free], hi[free]),
                                      bounds=(lo[free], hi[free]), x_scale="jac",
                                      max_nfev=max_nfev)
     except (ValueError, FloatingPointError) as exc:
         return None, str(exc)
     # Status 0 (evaluations used up) keeps the best point reached: still a fit.
     if sol.status >= 0 and np.all(np.isfinite(sol.fun)):
-        theta = held.copy()
-        theta[free] = sol.x
-        return theta, ""
+        coords = start.copy()
+        coords[free] = sol.x
+        return levels.from_fit(coords), ""
     return None, sol.message if sol.status < 0 else "non-finite residuals"
 
 
