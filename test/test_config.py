@@ -50,6 +50,8 @@ def test_contract_is_design_section_4():
     assert topics["chamber1/pressure"].type == "sensor_msgs/msg/FluidPressure"
     assert topics["joint_states"].type == "sensor_msgs/msg/JointState"
     assert topics["voltage_cmd"].direction == "controller, id_recorder -> actuator_sim"
+    # The measured signals' topics the nodes and the bag export share are the contract's.
+    assert set(interface.SENSOR_TOPICS.values()) <= set(topics)
     for topic in topics.values():
         assert topic.name == "/clock" or not topic.name.startswith("/"), topic.name
         assert topic.unit and topic.meaning and topic.publishers and topic.subscribers

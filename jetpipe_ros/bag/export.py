@@ -45,12 +45,13 @@ from jetpipe_ros.bag.writer import EVENTS_TOPIC, TYPESTORE
 from jetpipe_ros.dataset import DatasetError, Entry, write_dataset
 from jetpipe_ros.dataset.dataset import check_target
 from jetpipe_ros.dataset.timebase import fit_grid
+from jetpipe_ros.topics import OPTIONAL_SENSORS, SENSOR_TOPICS
 
 MAX_MISSING = 0.01  #: largest fraction of an experiment's samples that may be interpolated
 #: Stamped topics read, by the suffix their (possibly namespaced) name ends with.
-SIGNALS = ("joint_states", "chamber1/pressure", "chamber2/pressure", "voltage_applied")
+SIGNALS = (*SENSOR_TOPICS.values(), "voltage_applied")
 #: Those a rig may lack (the pressure sensors), by the column they fill.
-OPTIONAL = {"p1": "chamber1/pressure", "p2": "chamber2/pressure"}
+OPTIONAL = {key: SENSOR_TOPICS[key] for key in OPTIONAL_SENSORS}
 
 
 class BagError(DatasetError):

@@ -19,10 +19,9 @@ import yaml
 
 from jetpipe_ros.fileio import load_yaml
 from jetpipe_ros.package_data import share_file
+from jetpipe_ros.topics import SENSOR_TOPICS
 
 CONTRACT = "msg_defs/topics.yaml"
-#: The topic of each signal a rig may measure.
-SENSOR_TOPICS = {"y": "joint_states", "p1": "chamber1/pressure", "p2": "chamber2/pressure"}
 #: The values of a node's ``pressure_sensors`` parameter: the chamber pressures a rig measures
 #: beside the position (many have none, or one).
 PRESSURE_SENSORS = ("p1,p2", "p1", "p2", "none")
