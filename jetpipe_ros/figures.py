@@ -18,10 +18,10 @@ def pyplot() -> Any:
 
 
 def png_img(fig: Any, dpi: int = 90) -> str:
-    """A matplotlib figure as an inline ``<img>`` (PNG, base64, ``dpi`` dots per inch), the
-    figure closed."""
+    """A matplotlib figure as an inline ``<img>`` (PNG, base64, ``dpi`` dots per inch), as wide
+    as the page at most (scaled down in a narrower window, never cut), the figure closed."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
     pyplot().close(fig)
-    return ("<img alt='figure' src='data:image/png;base64,"
+    return ("<img alt='figure' style='max-width:100%' src='data:image/png;base64,"
             + base64.b64encode(buf.getvalue()).decode() + "'>")

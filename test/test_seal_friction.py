@@ -487,11 +487,12 @@ def test_a_seals_name_becomes_a_file_name_of_its_own():
 
 def test_the_report_gives_the_parameters_in_units_and_marks_those_a_bound_set():
     """The selected fit's table: levels in N, v_s and delta in mm/s and mm, and a value the
-    fit's range stopped (a viscous coefficient at 0, a Stribeck velocity at 50 mm/s) said so;
-    a value near but off its bound (ratio 0.209 against 0.2) is not."""
+    fit's range stopped (a viscous coefficient at 0, a Stribeck velocity at 50 mm/s) said so,
+    shown as the bound (the 7e-33 a fit stops at read "7.251e-33 (at its bound)"); a value near
+    but off its bound (ratio 0.209 against 0.2) is not."""
     from jetpipe_ros.identify.seal import _from_values
     from jetpipe_ros.identify.seal_report import _parameter_table
-    values = {**TRUTH, "exit.viscous": 0.0, "entry.stribeck_velocity": 0.05,
+    values = {**TRUTH, "exit.viscous": 7.251e-33, "entry.stribeck_velocity": 0.05,
               "entry.ratio": 0.209, "presliding_displacement": 7.8e-4,
               "presliding_spread": 0.0225}
     table = _parameter_table(_from_values("maxwell_slip", values))

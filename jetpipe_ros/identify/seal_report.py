@@ -180,10 +180,13 @@ def _parameter_table(fit: FormFit) -> str:
         value, (lo, hi, logged) = fit.values[name], bounds[name]
         if logged:
             value, lo, hi = math.log10(value), math.log10(lo), math.log10(hi)
-        at_bound = any(abs(value - b) <= _AT_BOUND * max(abs(b), _AT_BOUND * (hi - lo))
-                       for b in (lo, hi))
-        return (f"{fit.values[name] * _SHOWN[name.split('.')[-1]][2]:.4g}"
-                f"{' (at its bound)' if at_bound else ''}")
+        bound = next((b for b in (lo, hi)
+                      if abs(value - b) <= _AT_BOUND * max(abs(b), _AT_BOUND * (hi - lo))), None)
+        if bound is None:
+            return f"{fit.values[name] * _SHOWN[name.split('.')[-1]][2]:.4g}"
+        # The bound itself, within the flag's tolerance: "0", not the 1e-33 a fit stops at.
+        held = 10.0 ** bound if logged else bound
+        return f"{held * _SHOWN[name.split('.')[-1]][2]:.4g} (at its bound)"
 
     rows = []
     for quantity, (words, unit, _) in _SHOWN.items():
