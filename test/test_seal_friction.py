@@ -13,6 +13,7 @@ import pytest
 
 from jetpipe_ros.cli import main
 from jetpipe_ros.dataset import DatasetError, read_dataset, read_records
+from jetpipe_ros.identify.drift import level_drift
 from jetpipe_ros.identify.seal import (FORMS, fit_form, measured_presliding, no_profile, planes_of,
                                        prepare, scores)
 from jetpipe_ros.model import load_params
@@ -50,12 +51,13 @@ PROFILE = np.vstack([KNOTS, 1.0 + 0.10 * np.sin(2 * np.pi * KNOTS / 12e-3),
                      1.0 - 0.08 * np.cos(2 * np.pi * KNOTS / 15e-3)])
 
 
-def _synthetic(tmp_path: Path) -> Path:
+def _synthetic(tmp_path: Path, seconds: float = 40.0, drift: float = 0.0) -> Path:
     """A rig record made by the model's Maxwell-slip friction with :data:`TRUTH` and the bore
     profile :data:`PROFILE`: a smoothed triangle stroke of 30 mm at 12 mm/s, 4 bar gauge, force
-    noise 0.05 N, and logger gaps."""
+    noise 0.05 N, and logger gaps; its friction scaled by 1 + ``drift`` (t / ``seconds`` -
+    1/2), a level moving by ``drift`` over the record."""
     dt = 0.01
-    t = np.arange(0.0, 40.0, dt)
+    t = np.arange(0.0, seconds, dt)
     phase = (t / 5.0) % 2.0
     tri = np.where(phase < 1.0, phase, 2.0 - phase)
     x = 0.03 * np.convolve(tri, np.ones(15) / 15, mode="same")
@@ -63,7 +65,7 @@ def _synthetic(tmp_path: Path) -> Path:
     p = np.full(t.size, P_ATM + 4e5)
     f = prescribed_friction(MAXWELL_SLIP, planes_of(TRUTH), PROFILE, v, x, p,
                             np.full(t.size, P_ATM), dt, 0.0, 0.0, element_slips(DELTA, SPREAD, 3),
-                            LEVEL_FLOOR)
+                            LEVEL_FLOOR) * (1.0 + drift * (t / seconds - 0.5))
     force = f + (p - P_ATM) * AREA + np.random.default_rng(1).normal(0.0, 0.05, t.size)
     keep = np.ones(t.size, dtype=bool)
     for start in range(300, t.size - 40, 700):
@@ -98,6 +100,24 @@ def test_synthetic_record_recovers_its_maxwell_slip_parameters(tmp_path):
         # Its amplitude too: the fitted ripple against the true one, a slope within 10 %.
         slope = np.polyfit(truth - 1.0, fit.profile[row, inside] - 1.0, 1)[0]
         assert slope == pytest.approx(1.0, abs=0.1), (row, slope)
+
+
+@pytest.mark.parametrize("drift", [0.0, 0.2])
+def test_a_drifting_level_is_measured_and_a_steady_one_is_not(tmp_path, drift):
+    """The synthetic seal over 80 s (eight passes each way), its friction steady or rising by
+    20 % over the record: each direction's change between its first and last pass is the
+    truth's (20 % of that span's share of the record) within 1.5 points, inside the 95 %
+    interval, which excludes 0 for the drift and holds it for the steady seal."""
+    record, = read_records(_synthetic(tmp_path, seconds=80.0, drift=drift))
+    drifts = level_drift(prepare(record))
+    assert set(drifts) == {"exit", "entry"}
+    for d in drifts.values():
+        assert d.times.size >= 7
+        truth = drift * d.span / 80.0
+        assert d.change == pytest.approx(truth, abs=0.015)
+        lo, hi = d.change_interval
+        assert lo <= truth <= hi
+        assert d.significant == (drift > 0)
 
 
 def test_the_fits_run_on_several_processes_to_the_same_answer_and_say_so(tmp_path, capsys):
@@ -238,6 +258,13 @@ def test_friction_command_writes_loadable_parameters(tmp_path, capsys):
     pred = np.loadtxt(out / "prediction" / "PK_1bar.csv", delimiter=",", skiprows=1)
     assert pred.shape[1] == 3 and pred[0, 0] > 30.0  # the held-out second half
     assert "data:image/png;base64," in (out / "report.html").read_text()
+    # The record's level over time, from its passes: the entry direction's falls by 5 %
+    # over the 70 s (95 % interval -6.7 to -3.1 %), the exit's holds (-1.8 to +2.0 %).
+    drift = seal["records"]["PK_1bar"]["level_drift"]
+    assert drift["exit"]["passes"] >= 8 and not drift["exit"]["significant"]
+    assert drift["entry"]["significant"]
+    assert -0.08 < drift["entry"]["change_over_record"] < -0.03
+    assert "seal (unnamed): level over each record: exit" in capsys.readouterr().out
     params = load_params(out / "friction.yaml")
     assert params["friction.floor"] == LEVEL_FLOOR  # not the paper's 1 N
     assert params["effects.friction_dynamics.enabled"]

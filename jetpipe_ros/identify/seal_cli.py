@@ -82,6 +82,7 @@ def _seal_file(seal: str, taken: dict) -> str:
 def _run(args) -> int:
     from jetpipe_ros import fileio
     from jetpipe_ros.dataset import DatasetError, grouped_notes, read_dataset, read_records
+    from jetpipe_ros.identify.drift import describe, level_drift
     from jetpipe_ros.identify.experiments import FRICTION, of_kind, recordings
     from jetpipe_ros.identify.seal import identify_seal, prepare, prepare_test
     from jetpipe_ros.identify.seal_report import (html_report, params_yaml, prediction_csv,
@@ -115,10 +116,11 @@ def _run(args) -> int:
     fitted = _fit_all(seals, args.split, args.jobs, progress)
     results = [identify_seal(seal, preps, args.split, fitted[seal])
                for seal, preps in seals.items()]
-    doc = to_json(results, args.split, notes)
+    drifts = {p.record.name: level_drift(p) for res in results for p in res.preps}
+    doc = to_json(results, args.split, notes, drifts)
     files: dict = {out / "friction.yaml": params_yaml(results[0], base),
                    out / "friction.json": fileio.to_json(doc) + "\n",
-                   out / "report.html": html_report(results, doc)}
+                   out / "report.html": html_report(results, doc, drifts)}
     if len(results) > 1:
         for res in results:
             files[out / _seal_file(res.seal, files)] = params_yaml(res, base)
@@ -131,6 +133,9 @@ def _run(args) -> int:
               f"R^2 within direction {s['median_r2_within']:5.2f}")
     for res in results:
         print(f"seal {res.seal or '(unnamed)'}: selected {res.selected}")
+        drift = describe(res.seal, {p.record.name: drifts[p.record.name] for p in res.preps})
+        if drift:
+            print(drift)
     print(f"parameters -> {out / 'friction.yaml'}\nscores -> {out / 'friction.json'}\n"
           f"report -> {out / 'report.html'}")
     return 0

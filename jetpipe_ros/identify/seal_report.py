@@ -11,6 +11,7 @@ import numpy as np
 
 from jetpipe_ros.dataset.friction_rig import RigRecord
 from jetpipe_ros.figures import png_img, pyplot
+from jetpipe_ros.identify.drift import Drift
 from jetpipe_ros.identify.seal import (DIRECTIONS, FORMS, FormFit, Prepared, SealResult,
                                        measured_presliding, parameter_bounds, reverses,
                                        since_reversal)
@@ -48,8 +49,10 @@ def summary_table(results: list[SealResult]) -> dict[str, dict[str, float]]:
     return out
 
 
-def to_json(results: list[SealResult], split: float, notes: list[str]) -> dict[str, Any]:
-    """The content of ``friction.json``."""
+def to_json(results: list[SealResult], split: float, notes: list[str],
+            drifts: dict[str, dict[str, Drift]]) -> dict[str, Any]:
+    """The content of ``friction.json``; ``drifts`` gives each record's level drift by record
+    name and direction (:func:`~jetpipe_ros.identify.drift.level_drift`)."""
     seals = {}
     for res in results:
         records = {}
@@ -63,7 +66,8 @@ def to_json(results: list[SealResult], split: float, notes: list[str]) -> dict[s
                 "presliding_displacement_m": {
                     "model": res.model_of(res.selected, prep).presliding,
                     "measured": [float(np.min(measured)), float(np.median(measured)),
-                                 float(np.max(measured))] if measured.size else None}}
+                                 float(np.max(measured))] if measured.size else None},
+                "level_drift": {d: x.to_json() for d, x in drifts[prep.record.name].items()}}
         profile = res.seal_fits[res.selected].profile
         seals[res.seal or "seal"] = {
             "selected": res.selected,
@@ -138,8 +142,56 @@ def loop_figure(res: SealResult, preps: list[Prepared]) -> Any:
     return fig
 
 
-def html_report(results: list[SealResult], doc: dict[str, Any]) -> str:
-    """The self-contained HTML report."""
+def drift_figure(preps: list[Prepared], drifts: dict[str, dict[str, Drift]]) -> Any:
+    """Each pass's sliding level against time with its Theil-Sen line, exit and entry side by
+    side, one colour per record."""
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(11, 3.0), squeeze=False)
+    for colour, prep in zip(plt.rcParams["axes.prop_cycle"].by_key()["color"] * 4, preps):
+        for ax, direction in zip(axes[0], DIRECTIONS):
+            d = drifts[prep.record.name].get(direction)
+            if d is None:
+                continue
+            ax.plot(d.times, d.levels, "o", ms=3, color=colour,
+                    label=f"{prep.record.name} {100 * d.change:+.1f} %")
+            ends = np.array([d.times[0], d.times[-1]])
+            ax.plot(ends, d.intercept + d.slope * ends, "-", lw=1, color=colour)
+    for ax, direction in zip(axes[0], DIRECTIONS):
+        ax.set_title(f"{direction}: sliding level per pass (its change over the record)",
+                     fontsize=9)
+        ax.set_xlabel("time [s] (the record's)")
+        ax.set_ylabel("level [N]")
+        ax.grid(alpha=0.3)
+        if ax.lines:
+            ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def _drift_table(preps: list[Prepared], drifts: dict[str, dict[str, Drift]]) -> str:
+    """Each record's drift per direction: the change over the record with its 95 % interval,
+    in bold where the interval excludes no drift."""
+    def cell(d: Drift | None) -> str:
+        if d is None:
+            return "<td>-</td>"
+        lo, hi = d.change_interval
+        text = f"{d.change:+.1%} ({lo:+.1%} to {hi:+.1%}), {d.times.size} passes"
+        return f"<td>{'<b>' + text + '</b>' if d.significant else text}</td>"
+
+    rows = "".join(f"<tr><td>{html.escape(p.record.name)}</td>" +
+                   "".join(cell(drifts[p.record.name].get(d)) for d in DIRECTIONS) + "</tr>"
+                   for p in preps)
+    return ("<h3>The level over each record</h3><p>Each pass's median friction once settled, "
+            "a Theil-Sen line through the passes against time: its change over the record "
+            "relative to the mean level, with the 95 % interval (bold: no drift lies outside "
+            "it). No form describes a drift: a record whose level moves meets, in its held-out "
+            "part, a level its fit did not see.</p><table><tr><th>record</th>" +
+            "".join(f"<th>{d}</th>" for d in DIRECTIONS) + "</tr>" + rows + "</table>")
+
+
+def html_report(results: list[SealResult], doc: dict[str, Any],
+                drifts: dict[str, dict[str, Drift]]) -> str:
+    """The self-contained HTML report (``drifts`` as :func:`to_json` takes them)."""
     table = "".join(
         f"<tr><td>{form}</td><td>{s['median_nrmse'] * 100:.2f} %</td>"
         f"<td>{s['median_r2']:.3f}</td><td>{s['median_r2_within']:.3f}</td></tr>"
@@ -166,6 +218,9 @@ def html_report(results: list[SealResult], doc: dict[str, Any]) -> str:
         parts.append("</table><p>NRMSE / R^2 within direction, held-out moving samples.</p>")
         parts.append(_parameter_table(res.seal_fits[res.selected]))
         parts.append(png_img(loop_figure(res, res.preps), dpi=80))
+        if any(drifts[p.record.name] for p in res.preps):
+            parts.append(_drift_table(res.preps, drifts))
+            parts.append(png_img(drift_figure(res.preps, drifts), dpi=80))
     parts.append("<h2>Notes</h2><pre>" + html.escape("\n".join(doc["notes"])) + "</pre>")
     parts.append("</body></html>")
     return "".join(parts)
