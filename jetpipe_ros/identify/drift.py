@@ -122,10 +122,10 @@ def level_drift(prep: Prepared) -> dict[str, Drift]:
     return out
 
 
-def describe(seal: str, drifts: dict[str, dict[str, Drift]]) -> str | None:
+def describe(drifts: dict[str, dict[str, Drift]]) -> str | None:
     """One line on the drifts of a seal's records (record name -> direction -> drift), e.g.
-    "seal O-ring: level over each record: exit +3.6 to +7.2 %, entry -0.1 to +23.5 % (6 of 8
-    beyond their 95 % interval)"; None without a drift measured."""
+    "level over each record: exit +3.6 to +7.2 %, entry -0.1 to +23.5 % (6 of 8 beyond their
+    95 % interval)"; None without a drift measured."""
     ranges = []
     for direction in DIRECTIONS:
         changes = sorted(100 * d[direction].change for d in drifts.values() if direction in d)
@@ -136,5 +136,5 @@ def describe(seal: str, drifts: dict[str, dict[str, Drift]]) -> str | None:
     if not every:
         return None
     moved = sum(x.significant for x in every)
-    return (f"seal {seal or '(unnamed)'}: level over each record: {', '.join(ranges)} "
-            f"({moved} of {len(every)} beyond their 95 % interval)")
+    return (f"level over each record: {', '.join(ranges)} ({moved} of {len(every)} beyond "
+            f"their 95 % interval)")

@@ -133,9 +133,9 @@ def _run(args) -> int:
               f"R^2 within direction {s['median_r2_within']:5.2f}")
     for res in results:
         print(f"seal {res.seal or '(unnamed)'}: selected {res.selected}")
-        drift = describe(res.seal, {p.record.name: drifts[p.record.name] for p in res.preps})
+        drift = describe({p.record.name: drifts[p.record.name] for p in res.preps})
         if drift:
-            print(drift)
+            print(f"seal {res.seal or '(unnamed)'}: {drift}")
     print(f"parameters -> {out / 'friction.yaml'}\nscores -> {out / 'friction.json'}\n"
           f"report -> {out / 'report.html'}")
     return 0

@@ -11,7 +11,7 @@ import numpy as np
 
 from jetpipe_ros.dataset.friction_rig import RigRecord
 from jetpipe_ros.figures import png_img, pyplot
-from jetpipe_ros.identify.drift import Drift
+from jetpipe_ros.identify.drift import Drift, describe
 from jetpipe_ros.identify.seal import (DIRECTIONS, FORMS, FormFit, Prepared, SealResult,
                                        measured_presliding, parameter_bounds, reverses,
                                        since_reversal)
@@ -203,7 +203,15 @@ def html_report(results: list[SealResult], doc: dict[str, Any],
              "<p>" + html.escape(doc["metric"]) + "</p>",
              "<h2>Held-out scores (medians over records)</h2><table><tr><th>form</th>"
              "<th>NRMSE</th><th>R^2</th><th>R^2 within direction</th></tr>" + table +
-             "</table>"]
+             "</table>", "<h2>In short</h2><ul>"]
+    for res in results:
+        nrmse = [s["nrmse"] * 100 for s in res.scores[res.selected].values()]
+        drift = describe({p.record.name: drifts[p.record.name] for p in res.preps})
+        parts.append(f"<li>seal {html.escape(res.seal or '(unnamed)')}: {res.selected} "
+                     f"selected, held-out NRMSE {min(nrmse):.2f}-{max(nrmse):.2f} % over "
+                     f"{len(nrmse)} record(s)"
+                     + (f"; {html.escape(drift)}" if drift else "") + "</li>")
+    parts.append("</ul>")
     for res in results:
         name = res.seal or "seal"
         parts.append(f"<h2>{html.escape(name)}: selected {res.selected}</h2><table><tr>"
