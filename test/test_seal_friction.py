@@ -15,7 +15,7 @@ from jetpipe_ros.cli import main
 from jetpipe_ros.dataset import DatasetError, read_dataset, read_records
 from jetpipe_ros.identify.drift import level_drift
 from jetpipe_ros.identify.seal import (FORMS, fit_form, measured_presliding, no_profile, planes_of,
-                                       prepare, scores)
+                                       prepare, scores, velocity_window)
 from jetpipe_ros.model import load_params
 from jetpipe_ros.model.actuator import simulate
 from jetpipe_ros.model.flow import P_ATM
@@ -187,6 +187,27 @@ def test_a_record_logged_at_50_hz_is_fitted_as_at_100_hz():
     assert half.dt == pytest.approx(0.02)
     nrmse = []
     for rec in (record, half):
+        prep = prepare(rec)
+        fit = fit_form("maxwell_slip", [prep], rec.file, profile=False)
+        nrmse.append(scores(prep.friction[prep.test], fit.predict(prep)[prep.test],
+                            prep.v[prep.test])["nrmse"])
+    assert nrmse[0] < 0.03
+    assert nrmse[1] == pytest.approx(nrmse[0], abs=0.002)
+
+
+def test_a_rig_at_half_the_speed_is_fitted_as_at_full_speed():
+    """NAPN at 3 bar with its time stretched by two (a rig at half the speed): the velocity's
+    window spans 0.8 mm of travel at least (at the record's median speed), so the velocity,
+    half as large against the same position noise, is averaged twice as long: held-out NRMSE
+    the original's within 0.2 points (2.4 %; with a window of 0.1 s whatever the speed,
+    2.8 %)."""
+    record, = [r for r in read_records(SEALS) if r.name == "NAPN_3bar"]
+    slow = dataclasses.replace(record, t=2.0 * record.t)
+    # 8.6 mm/s: 0.8 mm take 0.093 s, under the 0.1 s floor; at 4.3 mm/s they take 0.18 s.
+    assert velocity_window(record) == pytest.approx(0.1)
+    assert velocity_window(slow) == pytest.approx(0.18, abs=0.01)
+    nrmse = []
+    for rec in (record, slow):
         prep = prepare(rec)
         fit = fit_form("maxwell_slip", [prep], rec.file, profile=False)
         nrmse.append(scores(prep.friction[prep.test], fit.predict(prep)[prep.test],

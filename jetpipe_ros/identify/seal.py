@@ -59,10 +59,16 @@ from jetpipe_ros.model.params import MAX_KNOTS, PROFILE_HIGH, PROFILE_LOW, Model
 
 FORMS = ("coulomb_viscous", "static", "lugre", "maxwell_slip")
 STATIC_FORMS = FORMS[:2]
-#: Window of the velocity's zero-phase derivative [s] (about 0.1 mm of travel per sample at
-#: the rigs' speeds, and wide enough to average a 100 Hz logger's noise).
+#: Travel over which the velocity's zero-phase derivative is taken [m], at the record's median
+#: moving speed: 0.1 s, the window chosen on the twelve public records (docs/friction.md), at
+#: their median speed of 8 mm/s. As travel rather than time, so a rig twice as slow or as fast
+#: smooths each reversal over the same length of the pre-sliding (0.2-0.8 mm): at 0.1 s,
+#: copies of three public records at half speed were missed by a median 4.9 % (Maxwell-slip,
+#: no profile) against 4.3 % as recorded, with the travel 3.5 %.
+WINDOW_TRAVEL = 8e-4
+#: The window [s] the record's speed is first measured with.
 WINDOW = 0.1
-#: Fewest samples of that window: a cubic Savitzky-Golay derivative over 5 samples passes the
+#: Fewest samples of the window: a cubic Savitzky-Golay derivative over 5 samples passes the
 #: position's noise to the velocity with twice the gain of the 0.1 s window at 100 Hz (47.5
 #: against 24.6 per second at 50 Hz), over 7 with the same (25.6): 50 Hz copies of three public
 #: records (Maxwell-slip, held-out NRMSE) were missed by 2.9-4.1 % with 5 against 1.9-3.3 % at
@@ -223,10 +229,25 @@ _KERNEL_FORM = {"coulomb_viscous": STATIC, "static": STATIC, "lugre": LUGRE,
                 "maxwell_slip": MAXWELL_SLIP}
 
 
+def velocity_window(record: RigRecord) -> float:
+    """The velocity's window [s]: :data:`WINDOW_TRAVEL` at the record's median moving speed
+    (measured over :data:`WINDOW`), :data:`MIN_WINDOW_SAMPLES` samples at least; :data:`WINDOW`
+    for a record too short or too still to measure a speed on."""
+    shortest = MIN_WINDOW_SAMPLES * record.dt
+    first = max(WINDOW, shortest)
+    if record.t.size < 4 * window_samples(first, record.dt):
+        return first
+    v = np.abs(derivative(record.x, record.dt, first))
+    moving = record.valid & (v > MIN_SPEED)
+    if not moving.any():
+        return first
+    return max(WINDOW_TRAVEL / float(np.median(v[moving])), first)
+
+
 def prepare(record: RigRecord, split: float = 0.5) -> Prepared:
     """Velocity and masks of one record: train = the first ``split`` of a non-holdout record,
     test = the rest (all of a holdout record); both moving samples with a clean window."""
-    window = max(WINDOW, MIN_WINDOW_SAMPLES * record.dt)
+    window = velocity_window(record)
     n = window_samples(window, record.dt)
     if record.t.size < 4 * n:
         raise DatasetError(f"{record.file}: {record.t.size} samples, need at least {4 * n} "
