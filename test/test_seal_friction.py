@@ -268,7 +268,7 @@ def test_friction_command_writes_loadable_parameters(tmp_path, capsys):
     shutil.copy(SEALS / "PK_1bar.csv", rig)
     (rig / "records.yaml").write_text("records:\n  - file: PK_1bar.csv\n    bore: 0.025\n")
     out = tmp_path / "out"
-    assert main(["friction", str(rig), "--out", str(out)]) == 0
+    assert main(["friction", str(rig), "--out", str(out), "--scale-to-piston"]) == 0
     doc = json.loads((out / "friction.json").read_text())
     seal = doc["seals"]["seal"]
     judged = seal["records"]["PK_1bar"]["scores"]
@@ -285,9 +285,18 @@ def test_friction_command_writes_loadable_parameters(tmp_path, capsys):
     assert drift["exit"]["passes"] >= 8 and not drift["exit"]["significant"]
     assert drift["entry"]["significant"]
     assert -0.08 < drift["entry"]["change_over_record"] < -0.03
-    assert "seal (unnamed): level over each record: exit" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "seal (unnamed): level over each record: exit" in printed
     params = load_params(out / "friction.yaml")
     assert params["friction.floor"] == LEVEL_FLOOR  # not the paper's 1 N
+    # Forces scaled from the 25 mm bore to the nominal piston (83.2 mm) by the circumferences'
+    # ratio, sqrt(0.005433 / 4.909e-4) = 3.327; the Stribeck velocities, lengths, as fitted.
+    assert "forces scaled by 3.33 from the rig's bore (25.0 mm) to the piston's (83.2 mm" in printed
+    fitted = planes_of(seal["parameters"][seal["selected"]])
+    for phase, i in (("entry", 0), ("exit", 1)):
+        np.testing.assert_allclose(params[f"friction.{phase}.coulomb"], 3.3269 * fitted[i, 3],
+                                   rtol=1e-4)
+        np.testing.assert_allclose(params[f"friction.{phase}.stribeck_velocity"], fitted[i, 1])
     assert params["effects.friction_dynamics.enabled"]
     assert params["effects.friction_dynamics.form"] == seal["selected"]
     u = np.concatenate([np.full(400, 0.4), np.full(400, -0.4)])

@@ -52,8 +52,8 @@ from jetpipe_ros.identify.experiments import Recording
 from jetpipe_ros.identify.friction import WINDOW as TEST_WINDOW
 from jetpipe_ros.identify.friction import friction_force
 from jetpipe_ros.model.flow import P_ATM
-from jetpipe_ros.model.friction import (LEVEL_FLOOR, LUGRE, MAXWELL_SLIP, STATIC,
-                                        element_slips, prescribed_friction,
+from jetpipe_ros.model.friction import (BREAKAWAY, COULOMB, LEVEL_FLOOR, LUGRE, MAXWELL_SLIP,
+                                        STATIC, VISCOUS, element_slips, prescribed_friction,
                                         presliding_displacement)
 from jetpipe_ros.model.params import MAX_KNOTS, PROFILE_HIGH, PROFILE_LOW, ModelParams
 
@@ -187,10 +187,16 @@ class FormFit:
                                    prep.record.x, prep.p1, prep.p2, prep.record.dt,
                                    self.sigma0, 0.0, self.slips, LEVEL_FLOOR)
 
-    def params(self, base: ModelParams, centre: float = 0.0) -> ModelParams:
+    def params(self, base: ModelParams, centre: float = 0.0, scale: float = 1.0
+               ) -> ModelParams:
         """``base`` with this fit's planes (held at the rig's floor, :data:`LEVEL_FLOOR`, not
         the paper's), its bore profile (knots shifted by ``-centre`` [m]: the records' position
-        that becomes the model's y = 0) and, for a dynamic form, its friction_dynamics."""
+        that becomes the model's y = 0) and, for a dynamic form, its friction_dynamics. Its
+        forces (breakaway, viscous and Coulomb planes, LuGre's stiffness) are multiplied by
+        ``scale``: a seal's friction grows with its circumference, its lengths (v_s, the
+        pre-sliding displacements) do not."""
+        planes = self.planes.copy()
+        planes[:, [BREAKAWAY, VISCOUS, COULOMB]] *= scale
         changes: dict[str, Any] = {"friction.floor": LEVEL_FLOOR}
         if self.profile.shape[1]:
             changes["friction.profile.position"] = [float(k - centre) for k in self.profile[0]]
@@ -199,11 +205,12 @@ class FormFit:
         for phase, i in (("entry", 0), ("exit", 1)):
             for q, row in (("breakaway", 0), ("stribeck_velocity", 1), ("viscous", 2),
                            ("coulomb", 3)):
-                changes[f"friction.{phase}.{q}"] = [float(c) for c in self.planes[i, row]]
+                changes[f"friction.{phase}.{q}"] = [float(c) for c in planes[i, row]]
         params = base.with_values(changes)
         if self.form == "lugre":
             params = params.with_effect("friction_dynamics", form="lugre",
-                                        bristle_stiffness=self.sigma0, bristle_damping=0.0)
+                                        bristle_stiffness=scale * self.sigma0,
+                                        bristle_damping=0.0)
         elif self.form == "maxwell_slip":
             params = params.with_effect(
                 "friction_dynamics", form="maxwell_slip",

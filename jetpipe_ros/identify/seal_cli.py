@@ -85,8 +85,8 @@ def _run(args) -> int:
     from jetpipe_ros.identify.drift import describe, level_drift
     from jetpipe_ros.identify.experiments import FRICTION, of_kind, recordings
     from jetpipe_ros.identify.seal import identify_seal, prepare, prepare_test
-    from jetpipe_ros.identify.seal_report import (html_report, params_yaml, prediction_csv,
-                                                  to_json)
+    from jetpipe_ros.identify.seal_report import (html_report, params_yaml, piston_scale,
+                                                  prediction_csv, to_json)
     from jetpipe_ros.model import ModelParams, load_params
 
     progress = Progress(args.quiet)
@@ -118,12 +118,13 @@ def _run(args) -> int:
                for seal, preps in seals.items()]
     drifts = {p.record.name: level_drift(p) for res in results for p in res.preps}
     doc = to_json(results, args.split, notes, drifts)
-    files: dict = {out / "friction.yaml": params_yaml(results[0], base),
+    files: dict = {out / "friction.yaml": params_yaml(results[0], base, args.scale_to_piston),
                    out / "friction.json": fileio.to_json(doc) + "\n",
                    out / "report.html": html_report(results, doc, drifts)}
     if len(results) > 1:
         for res in results:
-            files[out / _seal_file(res.seal, files)] = params_yaml(res, base)
+            files[out / _seal_file(res.seal, files)] = params_yaml(res, base,
+                                                                   args.scale_to_piston)
     for res in results:
         for prep in res.preps:
             files[out / "prediction" / f"{prep.record.name}.csv"] = prediction_csv(res, prep)
@@ -136,6 +137,8 @@ def _run(args) -> int:
         drift = describe({p.record.name: drifts[p.record.name] for p in res.preps})
         if drift:
             print(f"seal {res.seal or '(unnamed)'}: {drift}")
+        if args.scale_to_piston:
+            print(f"seal {res.seal or '(unnamed)'}: {piston_scale(res, base)[1]}")
     print(f"parameters -> {out / 'friction.yaml'}\nscores -> {out / 'friction.json'}\n"
           f"report -> {out / 'report.html'}")
     return 0
@@ -159,6 +162,10 @@ def add_command(subparsers) -> None:
     cmd.add_argument("--out", required=True, help="output directory")
     cmd.add_argument("--params", help="parameters the fitted friction is written into (YAML); "
                                       "default: the nominal model")
+    cmd.add_argument("--scale-to-piston", action="store_true",
+                     help="scale the seal's forces in friction.yaml from the rig's bore to the "
+                          "piston of --params (the nominal model's: 83.2 mm) by the ratio of "
+                          "their circumferences; default: as measured")
     cmd.add_argument("--split", type=float, default=0.5,
                      help="fraction of each record fitted; the rest is judged (default 0.5)")
     cmd.add_argument("--jobs", type=positive_int, default=2,

@@ -273,13 +273,31 @@ def _parameter_table(fit: FormFit) -> str:
     return table
 
 
-def params_yaml(res: SealResult, base: ModelParams) -> str:
-    """The seal's selected fit as a parameter file (ROS params layout)."""
+def piston_scale(res: SealResult, base: ModelParams) -> tuple[float, str]:
+    """The factor on a seal's forces from the rig's bore to the piston of ``base``, the ratio of
+    their circumferences (the square root of their areas' ratio), and the words saying so;
+    1 for the actuator's own friction tests (already its piston)."""
+    areas = [p.record.area for p in res.preps if isinstance(p.record, RigRecord)]
+    if not areas:
+        return 1.0, "the actuator's own friction tests: already its piston, not scaled"
+    rig = float(np.median(areas))
+    scale = math.sqrt(base["chamber.piston_area"] / rig)
+    return scale, (f"forces scaled by {scale:.3g} from the rig's bore "
+                   f"({2e3 * math.sqrt(rig / math.pi):.1f} mm) to the piston's "
+                   f"({2e3 * math.sqrt(base['chamber.piston_area'] / math.pi):.1f} mm, "
+                   f"chamber.piston_area), the ratio of their circumferences")
+
+
+def params_yaml(res: SealResult, base: ModelParams, to_piston: bool = False) -> str:
+    """The seal's selected fit as a parameter file (ROS params layout); with ``to_piston``, its
+    forces scaled to the piston of ``base`` (:func:`piston_scale`)."""
     fit = res.seal_fits[res.selected]
     shift = centre(res)
     header = (f"# jetpipe friction: seal {res.seal or '(unnamed)'}, form {res.selected}, "
               f"fitted on a friction rig (planes over the rig's pressure; see docs/friction.md)\n")
+    scale, words = piston_scale(res, base) if to_piston else (1.0, "")
+    header += f"# {words}\n" if words else "# forces as measured on the rig's bore\n"
     if fit.profile.shape[1]:
         header += (f"# bore profile: the records' position {shift * 1e3:.2f} mm is the model's "
                    f"y = 0\n")
-    return header + fit.params(base, shift).to_ros_yaml(only_changed=True)
+    return header + fit.params(base, shift, scale).to_ros_yaml(only_changed=True)
