@@ -153,7 +153,8 @@ def add_command(subparsers) -> None:
                     "LuGre, Maxwell-slip) to friction-rig records (records.yaml + CSVs "
                     "t,x,p,F), or to the friction tests of an actuator's dataset (Eq. 19), "
                     "on the first part of each record, judge them on the rest, select "
-                    "the best by held-out NRMSE and write OUT/friction.yaml (loadable by "
+                    "the best by held-out NRMSE, measure how each record's sliding level "
+                    "drifts over time, and write OUT/friction.yaml (loadable by "
                     "jetpipe simulate and actuator_sim), OUT/friction.json, OUT/report.html "
                     "and OUT/prediction/<record>.csv.")
     cmd.add_argument("dir", help="friction-rig folder (records.yaml + CSVs), or a dataset of "
