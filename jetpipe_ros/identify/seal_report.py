@@ -170,7 +170,7 @@ def drift_figure(preps: list[Prepared], drifts: dict[str, dict[str, Drift]]) -> 
 
 def _drift_table(preps: list[Prepared], drifts: dict[str, dict[str, Drift]]) -> str:
     """Each record's drift per direction: the change over the record with its 95 % interval,
-    in bold where the interval excludes no drift."""
+    in bold where the interval excludes 0."""
     def cell(d: Drift | None) -> str:
         if d is None:
             return "<td>-</td>"
@@ -183,8 +183,9 @@ def _drift_table(preps: list[Prepared], drifts: dict[str, dict[str, Drift]]) -> 
                    for p in preps)
     return ("<h3>The level over each record</h3><p>Each pass's median friction once settled, "
             "a Theil-Sen line through the passes against time: its change over the record "
-            "relative to the mean level, with the 95 % interval (bold: no drift lies outside "
-            "it). No form describes a drift: a record whose level moves meets, in its held-out "
+            "relative to the mean level, with the 95 % interval (bold: the interval excludes "
+            "0, a drift beyond the passes' scatter). No form describes a drift: a record whose "
+            "level moves meets, in its held-out "
             "part, a level its fit did not see.</p><table><tr><th>record</th>" +
             "".join(f"<th>{d}</th>" for d in DIRECTIONS) + "</tr>" + rows + "</table>")
 
@@ -296,7 +297,7 @@ def params_yaml(res: SealResult, base: ModelParams, to_piston: bool = False) -> 
     header = (f"# jetpipe friction: seal {res.seal or '(unnamed)'}, form {res.selected}, "
               f"fitted on a friction rig (planes over the rig's pressure; see docs/friction.md)\n")
     scale, words = piston_scale(res, base) if to_piston else (1.0, "")
-    header += f"# {words}\n" if words else "# forces as measured on the rig's bore\n"
+    header += f"# {words}\n" if words else "# forces as measured\n"
     if fit.profile.shape[1]:
         header += (f"# bore profile: the records' position {shift * 1e3:.2f} mm is the model's "
                    f"y = 0\n")
