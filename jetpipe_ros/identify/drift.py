@@ -75,7 +75,7 @@ class Drift:
 
     @property
     def significant(self) -> bool:
-        """True when the interval excludes no drift."""
+        """True when the 95 % interval excludes 0 (a drift beyond the passes' scatter)."""
         lo, hi = self.interval
         return lo > 0.0 or hi < 0.0
 
