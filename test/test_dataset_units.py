@@ -50,7 +50,9 @@ def test_a_declared_gauge_reference_gives_the_absolute_pressures_back(clean, tmp
     gauge = _relogged(clean, tmp_path, reference)
     for p in ("p1", "p2"):
         assert np.max(np.abs(getattr(gauge, p) - getattr(truth, p))) < 1e-6  # [Pa]
+    # The position logged in mm from the retracted end stop, read back with its zero.
     assert np.max(np.abs(gauge.y - truth.y)) < 1e-12  # [m]
+    assert "y: mm -> m (x 0.001, - 0.025 m)" in gauge.notes
     assert any("+ 101325 Pa" in n and "assumed" not in n for n in gauge.notes)
 
 
@@ -74,3 +76,40 @@ def test_an_undeclared_reference_is_the_models_atmosphere_and_the_notes_say_so(c
 def test_a_bad_gauge_reference_is_refused_naming_it(clean, tmp_path, reference, words):
     with pytest.raises(DatasetError, match=f"dataset.yaml: units: gauge_reference: .*{words}"):
         _relogged(clean, tmp_path, reference)
+
+
+@pytest.mark.parametrize("zero, words", [
+    ("25", "expected a length and its unit"),
+    ("25 bar", "expected a length and its unit"),
+    ("2 m", "more than the 0.5 m"),
+])
+def test_a_bad_position_zero_is_refused_naming_it(clean, tmp_path, zero, words):
+    root = tmp_path / "zero"
+    shutil.copytree(clean, root)
+    doc = yaml.safe_load((root / "dataset.yaml").read_text())
+    doc["units"] = {"position_zero": zero}
+    (root / "dataset.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    with pytest.raises(DatasetError, match=f"dataset.yaml: units: position_zero: .*{words}"):
+        read_dataset(root)
+
+
+def test_a_position_zeroed_at_an_end_stop_is_refused_with_the_declaration_to_make(clean,
+                                                                                 tmp_path):
+    """The same record with y from the retracted end stop in m and nothing declared: refused,
+    the message giving the declaration that reads it (the stroke's half, 25 mm)."""
+    root = tmp_path / "end_stop"
+    shutil.copytree(clean, root)
+    path = root / "sweep_1p5V.csv"
+    header, *rows = path.read_text().splitlines()
+    i = header.split(",").index("y")
+    moved = [",".join(repr(float(v) + 0.025) if k == i else v
+                      for k, v in enumerate(r.split(","))) for r in rows]
+    path.write_text("\n".join([header, *moved]) + "\n")
+    with pytest.raises(DatasetError, match=r"look measured from an end stop.*"
+                                           r"units: \{position_zero: 25 mm\}"):
+        read_dataset(root)
+    doc = yaml.safe_load((root / "dataset.yaml").read_text())
+    doc["units"] = {"position_zero": "25 mm"}
+    (root / "dataset.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    truth = read_dataset(clean).experiments[0]
+    assert np.max(np.abs(read_dataset(root).experiments[0].y - truth.y)) < 1e-12

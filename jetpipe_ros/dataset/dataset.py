@@ -10,7 +10,8 @@
         units: {u: mV}      # units of this CSV's columns, optional (overrides the top level)
         columns: {cmd: u}   # this CSV's own column names -> the contract's, optional
     units: {t: ms, p1: bar gauge, p2: bar gauge, gauge_reference: 1013.25 hPa}  # optional,
-                    # for every experiment; gauge_reference: the ambient gauge is relative to
+                    # for every experiment; gauge_reference: the ambient gauge is relative to;
+                    # position_zero: what the position sensor reads at mid-stroke (25 mm)
     columns: {time: t, position: y}  # optional, for every experiment (an entry's own override)
 
 Units (:mod:`jetpipe_ros.dataset.units`) are converted to SI when the experiments are read; each

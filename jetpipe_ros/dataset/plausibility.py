@@ -16,7 +16,7 @@ import numpy as np
 
 from jetpipe_ros.dataset.errors import DatasetError
 from jetpipe_ros.model.flow import P_ATM
-from jetpipe_ros.model.limits import NOMINAL, Limits
+from jetpipe_ros.model.limits import NOMINAL, POSITION_MARGIN, Limits
 
 #: Unit mistakes recognised per kind of column: (unit, factor to SI).
 PRESSURE_UNITS = (("bar", 1e5), ("kPa", 1e3), ("MPa", 1e6), ("psi", 6894.757),
@@ -94,7 +94,10 @@ class _Column:
                                                     & (x <= 2 * end_stop)):
             raise DatasetError(f"{where}: values {span} look measured from an end stop (0 to "
                                f"{2 * end_stop:.6g} {unit}); the dataset centres the stroke "
-                               f"(plausible: {plausible}): subtract half the stroke")
+                               f"(plausible: {plausible}): declare what the sensor reads at "
+                               f"mid-stroke in dataset.yaml (units: {{position_zero: "
+                               f"{(end_stop - POSITION_MARGIN) * 1e3:g} mm}} for a zero at an "
+                               f"end stop), or subtract half the stroke")
         first = int(bad[0])
         line = f"line {int(self.lines[first])}" if self.lines is not None \
             else f"data row {first + 1}"

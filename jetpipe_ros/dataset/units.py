@@ -12,7 +12,10 @@ An experiment CSV is in the contract's units (``t`` [s], ``u`` [V], ``y`` [m], `
 The reader converts the declared columns to SI before any other check, so the plausibility
 checks (:mod:`jetpipe_ros.dataset.plausibility`) run on SI values and a declared unit that is
 still wrong is caught as if nothing had been declared. A conversion is ``x * factor + offset``;
-the offset is only for gauge pressure, which is relative to the atmosphere: the reader adds the
+the offset is for a gauge pressure and for a position sensor zeroed elsewhere than mid-stroke
+(``position_zero``: what it reads with the piston at the model's y = 0, e.g. ``25 mm`` for one
+zeroed at the retracted end stop, subtracted after scaling). A gauge pressure is relative to
+the atmosphere: the reader adds the
 reference declared as ``gauge_reference`` (an absolute pressure with its unit, e.g. ``101325
 Pa`` or ``1013.25 hPa``: the barometer's reading, or the standard atmosphere a logger that
 converts absolute readings to gauge subtracted), else :data:`jetpipe_ros.model.flow.P_ATM` (the
@@ -28,6 +31,7 @@ same way for its columns ``t``, ``x`` (a length), ``p`` and ``F`` (a force):
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -58,6 +62,11 @@ REFERENCE = "gauge_reference"
 REFERENCE_RANGE = (3.0e4, 1.2e5)
 #: Words of the note of a gauge pressure converted with the reference assumed.
 ASSUMED = f"assumed, not declared ({REFERENCE})"
+#: The key of a ``units:`` mapping that gives what the position sensor reads with the piston at
+#: mid-stroke (the model's y = 0), a length with its unit; subtracted after scaling. The most
+#: it may be [m]: a sensor zeroed at an end stop of a long stroke.
+ZERO = "position_zero"
+ZERO_LIMIT = 0.5
 
 
 @dataclass(frozen=True)
@@ -81,10 +90,11 @@ class Unit:
 
     def note(self) -> str:
         """The conversion as a sentence, e.g. ``p1: bar gauge -> Pa absolute (x 100000, +
-        100000 Pa)``."""
+        100000 Pa)``, ``y: mm -> m (x 0.001, - 0.025 m)``."""
         how = [f"x {self.factor:.10g}"] if self.factor != 1.0 else []
         if self.offset:
-            how.append(f"+ {self.offset:.10g} Pa")
+            sign = "+" if self.offset > 0 else "-"
+            how.append(f"{sign} {abs(self.offset):.10g} {self.si.split()[0]}")
         return f"{self.column}: {self.name} -> {self.si} ({', '.join(how)})"
 
 
@@ -105,7 +115,9 @@ def parse(column: str, text: Any, reference: float = P_ATM,
     if column not in quantities:
         raise ValueError(f"unknown column {column!r}; units can be declared for "
                          f"{', '.join(quantities)} (and {REFERENCE}, the absolute pressure "
-                         f"gauge pressures are relative to)")
+                         f"gauge pressures are relative to"
+                         + (f"; {ZERO}, what the position sensor reads at mid-stroke"
+                            if "y" in quantities else "") + ")")
     name = " ".join(text.split()) if isinstance(text, str) else None
     if name:
         if quantities[column] == "pressure":
@@ -161,6 +173,24 @@ def gauge_reference(text: Any) -> float:
     return value
 
 
+def position_zero(text: Any) -> float:
+    """The reading [m] that ``position_zero: text`` declares (a number and a length unit, e.g.
+    ``25 mm``, ``-0.025 m``); ValueError naming the key, the value and what is accepted."""
+    words = text.split() if isinstance(text, str) else []
+    scales = _SCALES["length"][1]
+    try:
+        value = float(words[0]) * scales[words[1]] if len(words) == 2 else None
+    except (ValueError, KeyError):
+        value = None
+    if value is None:
+        raise ValueError(f"{ZERO}: expected a length and its unit ({', '.join(scales)}; e.g. "
+                         f"'25 mm'), got {text!r}")
+    if not abs(value) <= ZERO_LIMIT:
+        raise ValueError(f"{ZERO}: {text!r} is {value:g} m, more than the {ZERO_LIMIT:g} m a "
+                         f"position sensor's zero can lie from mid-stroke")
+    return value
+
+
 def declared(where: str, raw: Any, quantities: Mapping[str, str] = EXPERIMENT
              ) -> dict[str, str]:
     """Validate a ``units:`` mapping (column -> unit) read at ``where`` for a file whose columns
@@ -176,6 +206,8 @@ def declared(where: str, raw: Any, quantities: Mapping[str, str] = EXPERIMENT
         try:
             if column == REFERENCE:
                 gauge_reference(text)
+            elif column == ZERO and "y" in quantities:
+                position_zero(text)
             else:
                 parse(column, text, quantities=quantities)
         except ValueError as exc:
@@ -196,11 +228,14 @@ def to_si(where: str, cols: dict[str, np.ndarray], units: Mapping[str, str] | No
     units = declared(where, units, quantities)
     given = REFERENCE in units
     reference = gauge_reference(units[REFERENCE]) if given else P_ATM
+    per_column = {c: t for c, t in units.items() if c not in (REFERENCE, ZERO)}
+    if ZERO in units:
+        per_column.setdefault("y", "m")
     notes = []
-    for column, text in units.items():
-        if column == REFERENCE:
-            continue
+    for column, text in per_column.items():
         unit = parse(column, text, reference, quantities)
+        if column == "y" and ZERO in units:
+            unit = dataclasses.replace(unit, offset=-position_zero(units[ZERO]))
         if column in cols and not unit.identity:
             cols[column] = unit.convert(cols[column])
             assumed = (f"; the ambient pressure the gauge is relative to {ASSUMED}: a "

@@ -8,10 +8,11 @@ otherwise. Each logger here rewrites a recorded dataset directory as one of them
   (at t_k+1): every measurement column moves one row up, the last row is dropped;
 - ``lossy``: a logger on a non-real-time host: 1 % of the rows lost at random and every stamp
   taken from a clock with jitter (uniform, +-0.3 of a sample);
-- ``gauge_mm``: pressures in bar gauge and the position in mm, declared in ``dataset.yaml``,
-  the gauge relative to the standard atmosphere (101325 Pa), which it declares too: the plant's
-  ambient is 1 bar, so a reader that took the model's 1 bar for the reference would see both
-  pressures 1.3 kPa low;
+- ``gauge_mm``: pressures in bar gauge and the position in mm from the retracted end stop (a
+  linear sensor zeroed there), declared in ``dataset.yaml`` with what the sensor reads at
+  mid-stroke (``position_zero``), the gauge relative to the standard atmosphere (101325 Pa),
+  which it declares too: the plant's ambient is 1 bar, so a reader that took the model's 1 bar
+  for the reference would see both pressures 1.3 kPa low;
 - ``one_pressure``: a bench with one pressure sensor (chamber 1): column ``p2`` dropped;
 - ``position_only``: no pressure sensors: ``p1`` and ``p2`` dropped.
 
@@ -36,6 +37,9 @@ import yaml
 #: Columns that hold measurements (what a logger pairs with the command).
 MEASURED = ("y", "p1", "p2", "v")
 P_ATM_LOGGER = 101325.0  #: the logger's idea of the atmosphere for gauge pressure [Pa]
+#: What a position sensor zeroed at the retracted end stop reads at mid-stroke [mm] (the
+#: plant's stroke is 50 mm, centred).
+HALF_STROKE_MM = 25.0
 LOST_FRACTION = 0.01  #: rows a lossy logger loses
 JITTER = 0.3  #: a lossy logger's stamp jitter, half-width [samples]
 
@@ -82,8 +86,9 @@ def lossy(root: Path, rng: np.random.Generator) -> None:
 
 
 def gauge_mm(root: Path, rng: np.random.Generator) -> None:
-    """Pressures in bar gauge, the position in mm (and velocity in mm/s), declared."""
-    scale = {"y": (1e3, 0.0), "v": (1e3, 0.0), "p1": (1e-5, -P_ATM_LOGGER * 1e-5),
+    """Pressures in bar gauge, the position in mm from the retracted end stop (and velocity in
+    mm/s), declared."""
+    scale = {"y": (1e3, HALF_STROKE_MM), "v": (1e3, 0.0), "p1": (1e-5, -P_ATM_LOGGER * 1e-5),
              "p2": (1e-5, -P_ATM_LOGGER * 1e-5)}
     for path in _files(root):
         header, data = _read(path)
@@ -95,7 +100,8 @@ def gauge_mm(root: Path, rng: np.random.Generator) -> None:
     index = root / "dataset.yaml"
     doc = yaml.safe_load(index.read_text())
     doc["units"] = {"y": "mm", "v": "mm/s", "p1": "bar gauge", "p2": "bar gauge",
-                    "gauge_reference": f"{P_ATM_LOGGER:.0f} Pa"}
+                    "gauge_reference": f"{P_ATM_LOGGER:.0f} Pa",
+                    "position_zero": f"{HALF_STROKE_MM:g} mm"}
     index.write_text(yaml.safe_dump(doc, sort_keys=False))
 
 
