@@ -271,6 +271,9 @@ def test_friction_command_writes_loadable_parameters(tmp_path, capsys):
     # Selected by held-out evidence: a dynamic form, the lowest NRMSE.
     assert seal["selected"] == min(judged, key=lambda form: judged[form]["nrmse"])
     assert seal["selected"] in ("lugre", "maxwell_slip")
+    # The record's own fit of each form, its level at its pressure (slope held at 0).
+    own = seal["records"]["PK_1bar"]["parameters"]
+    assert set(own) == set(judged) and own[seal["selected"]]["exit.slope"] == 0.0
     pred = np.loadtxt(out / "prediction" / "PK_1bar.csv", delimiter=",", skiprows=1)
     assert pred.shape[1] == 3 and pred[0, 0] > 30.0  # the held-out second half
     assert "data:image/png;base64," in (out / "report.html").read_text()
@@ -553,3 +556,12 @@ def test_the_report_gives_the_parameters_in_units_and_marks_those_a_bound_set():
     assert rows["Stribeck velocity v_s"] == "<td>3</td><td>50 (at its bound)</td>"
     assert rows["breakaway over sliding level F_S / F_C"] == "<td>0.6</td><td>0.209</td>"
     assert rows["pre-sliding displacement delta"] == "<td colspan='2'>0.78</td>"
+    # With the records' own fits: the range of what does not follow the pressure, below it.
+    own = [_from_values("maxwell_slip", {**values, "presliding_displacement": d,
+                                         "exit.level": level})
+           for d, level in ((5e-4, 2.0), (9.1e-4, 8.0))]
+    rows = dict(re.findall(r"<tr><td>([^<]+)</td><td>[^<]*</td>(.*?)</tr>",
+                           _parameter_table(_from_values("maxwell_slip", values), own)))
+    assert rows["pre-sliding displacement delta"] == (
+        "<td colspan='2'>0.78<br><small>records 0.5 to 0.91</small></td>")
+    assert "records" not in rows["sliding level F_C at 0 bar gauge"]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import html
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -30,6 +31,9 @@ _SHOWN = {"level": ("sliding level F_C at 0 bar gauge", "N", 1.0),
 #: A value this close to a bound of its fitted range, relative to the bound (to the range for a
 #: bound at 0; in decades for a log-fitted one), is flagged: the bound placed it, not the data.
 _AT_BOUND = 1e-3
+#: Parameters that follow the pressure: a record's own fit holds its level at its pressure
+#: (slope 0), so their range over the records says nothing of the seal's consistency.
+_WITH_PRESSURE = ("level", "slope")
 
 
 def _median(values: list[float]) -> float:
@@ -67,7 +71,10 @@ def to_json(results: list[SealResult], split: float, notes: list[str],
                     "model": res.model_of(res.selected, prep).presliding,
                     "measured": [float(np.min(measured)), float(np.median(measured)),
                                  float(np.max(measured))] if measured.size else None},
-                "level_drift": {d: x.to_json() for d, x in drifts[prep.record.name].items()}}
+                "level_drift": {d: x.to_json() for d, x in drifts[prep.record.name].items()},
+                # Its own fit of each form (a fitted record): levels at its pressure (slope 0).
+                "parameters": {form: res.per_record[form][prep.record.name].values
+                               for form in FORMS if prep.record.name in res.per_record[form]}}
         profile = res.seal_fits[res.selected].profile
         seals[res.seal or "seal"] = {
             "selected": res.selected,
@@ -225,7 +232,8 @@ def html_report(results: list[SealResult], doc: dict[str, Any],
                              if s else "<td>-</td>")
             parts.append(f"<tr><td>{html.escape(prep.record.name)}</td>{''.join(cells)}</tr>")
         parts.append("</table><p>NRMSE / R^2 within direction, held-out moving samples.</p>")
-        parts.append(_parameter_table(res.seal_fits[res.selected]))
+        parts.append(_parameter_table(res.seal_fits[res.selected],
+                                      list(res.per_record[res.selected].values())))
         parts.append(png_img(loop_figure(res, res.preps), dpi=80))
         if any(drifts[p.record.name] for p in res.preps):
             parts.append(_drift_table(res.preps, drifts))
@@ -235,9 +243,12 @@ def html_report(results: list[SealResult], doc: dict[str, Any],
     return "".join(parts)
 
 
-def _parameter_table(fit: FormFit) -> str:
+def _parameter_table(fit: FormFit, own: Sequence[FormFit] = ()) -> str:
     """The selected fit's parameters as a table with units, per direction where they are, a
-    value its range's bound set marked so; the bore profile in a line below."""
+    value its range's bound set marked so; with ``own`` (each record's own fit of the form,
+    two or more), below each parameter that does not follow the pressure the range of its
+    values over them: how consistent the seal is from record to record. The bore profile in a
+    line below."""
     bounds = parameter_bounds(fit.form)
 
     def shown(name: str) -> str:
@@ -246,11 +257,17 @@ def _parameter_table(fit: FormFit) -> str:
             value, lo, hi = math.log10(value), math.log10(lo), math.log10(hi)
         bound = next((b for b in (lo, hi)
                       if abs(value - b) <= _AT_BOUND * max(abs(b), _AT_BOUND * (hi - lo))), None)
+        scale = _SHOWN[name.split(".")[-1]][2]
         if bound is None:
-            return f"{fit.values[name] * _SHOWN[name.split('.')[-1]][2]:.4g}"
-        # The bound itself, within the flag's tolerance: "0", not the 1e-33 a fit stops at.
-        held = 10.0 ** bound if logged else bound
-        return f"{held * _SHOWN[name.split('.')[-1]][2]:.4g} (at its bound)"
+            text = f"{fit.values[name] * scale:.4g}"
+        else:
+            # The bound itself, within the flag's tolerance: "0", not the 1e-33 a fit stops at.
+            text = f"{(10.0 ** bound if logged else bound) * scale:.4g} (at its bound)"
+        values = [f.values[name] * scale for f in own]
+        if len(values) > 1 and name.split(".")[-1] not in _WITH_PRESSURE:
+            lo, hi = (f"{v:.3g}" if abs(v) >= 1e-9 else "0" for v in (min(values), max(values)))
+            text += f"<br><small>records {lo} to {hi}</small>"
+        return text
 
     rows = []
     for quantity, (words, unit, _) in _SHOWN.items():
