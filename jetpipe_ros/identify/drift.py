@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from jetpipe_ros.identify.seal import DIRECTIONS, SETTLED, Prepared, since_reversal
+from jetpipe_ros.identify.seal import DIRECTIONS, SETTLED, Prepared, reversals, since_reversal
 
 #: Fewest passes a direction needs for a line with an interval: with fewer than 4 the 95 %
 #: interval of a Theil-Sen slope spans every pairwise slope.
@@ -94,7 +94,7 @@ def pass_levels(prep: Prepared) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     moving = prep.train | prep.test
     since = since_reversal(rec.x, prep.v)
     settled = moving & (np.abs(np.nan_to_num(since)) >= SETTLED)
-    turns = np.flatnonzero(np.sign(prep.v[1:]) != np.sign(prep.v[:-1])) + 1
+    turns = reversals(prep.v)
     bounds = zip(np.concatenate([[0], turns]), np.concatenate([turns, [prep.v.size]]))
     out: dict[str, tuple[list[float], list[float]]] = {d: ([], []) for d in DIRECTIONS}
     for start, end in bounds:

@@ -757,11 +757,16 @@ def reverses(prep: Prepared) -> bool:
     return bool(np.any(prep.v[moving] > 0) and np.any(prep.v[moving] < 0))
 
 
+def reversals(v: np.ndarray) -> np.ndarray:
+    """Indices where the velocity ``v`` changes sign (each the first sample after it)."""
+    return np.flatnonzero(np.sign(v[1:]) != np.sign(v[:-1])) + 1
+
+
 def since_reversal(x: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Displacement since the last reversal [m], signed as the motion: x minus x where the
     velocity ``v`` last changed sign (NaN before the first reversal)."""
     out = np.full(x.size, math.nan)
-    turns = np.flatnonzero(np.sign(v[1:]) != np.sign(v[:-1])) + 1
+    turns = reversals(v)
     for k, end in zip(turns, [*turns[1:], x.size]):
         out[k:end] = x[k:end] - x[k]
     return out
