@@ -77,7 +77,7 @@ class Unit:
     name: str  #: as declared, e.g. ``bar gauge``
     si: str  #: the contract's unit, e.g. ``Pa absolute``
     factor: float
-    offset: float = 0.0  #: [SI unit], added after scaling (gauge pressure: the atmosphere)
+    offset: float = 0.0  #: [SI unit], added after scaling (gauge: the atmosphere; y: -its zero)
 
     @property
     def identity(self) -> bool:
