@@ -265,8 +265,9 @@ def _parameter_table(fit: FormFit, own: Sequence[FormFit] = ()) -> str:
             text = f"{(10.0 ** bound if logged else bound) * scale:.4g} (at its bound)"
         values = [f.values[name] * scale for f in own]
         if len(values) > 1 and name.split(".")[-1] not in _WITH_PRESSURE:
-            lo, hi = (f"{v:.3g}" if abs(v) >= 1e-9 else "0" for v in (min(values), max(values)))
-            text += f"<br><small>records {lo} to {hi}</small>"
+            least, most = (f"{v:.3g}" if abs(v) >= 1e-9 else "0"
+                           for v in (min(values), max(values)))
+            text += f"<br><small>records {least} to {most}</small>"
         return text
 
     rows = []
