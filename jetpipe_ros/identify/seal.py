@@ -53,8 +53,8 @@ from jetpipe_ros.identify.friction import WINDOW as TEST_WINDOW
 from jetpipe_ros.identify.friction import friction_force
 from jetpipe_ros.model.flow import P_ATM
 from jetpipe_ros.model.friction import (BREAKAWAY, COULOMB, LEVEL_FLOOR, LUGRE, MAXWELL_SLIP,
-                                        STATIC, VISCOUS, element_slips, prescribed_friction,
-                                        presliding_displacement)
+                                        STATIC, STRIBECK, VISCOUS, element_slips,
+                                        prescribed_friction, presliding_displacement)
 from jetpipe_ros.model.params import MAX_KNOTS, PROFILE_HIGH, PROFILE_LOW, ModelParams
 
 FORMS = ("coulomb_viscous", "static", "lugre", "maxwell_slip")
@@ -203,8 +203,8 @@ class FormFit:
             changes["friction.profile.exit"] = [float(f) for f in self.profile[1]]
             changes["friction.profile.entry"] = [float(f) for f in self.profile[2]]
         for phase, i in (("entry", 0), ("exit", 1)):
-            for q, row in (("breakaway", 0), ("stribeck_velocity", 1), ("viscous", 2),
-                           ("coulomb", 3)):
+            for q, row in (("breakaway", BREAKAWAY), ("stribeck_velocity", STRIBECK),
+                           ("viscous", VISCOUS), ("coulomb", COULOMB)):
                 changes[f"friction.{phase}.{q}"] = [float(c) for c in planes[i, row]]
         params = base.with_values(changes)
         if self.form == "lugre":
