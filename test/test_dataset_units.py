@@ -113,3 +113,66 @@ def test_a_position_zeroed_at_an_end_stop_is_refused_with_the_declaration_to_mak
     (root / "dataset.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
     truth = read_dataset(clean).experiments[0]
     assert np.max(np.abs(read_dataset(root).experiments[0].y - truth.y)) < 1e-12
+
+
+def test_a_position_and_command_counted_the_other_way_are_read_with_a_minus(clean, tmp_path):
+    """A position sensor mounted the other way round and zeroed at the extended end stop (it
+    reads 0 there and 25 mm at mid-stroke, rising as the piston retracts), and a valve wired
+    the other way (the logged command is minus the contract's): declared ``y: -mm``,
+    ``position_zero: 25 mm`` and ``u: -V``, both read back as the contract's, and said."""
+    root = tmp_path / "reversed"
+    shutil.copytree(clean, root)
+    path = root / "sweep_1p5V.csv"
+    header, *rows = path.read_text().splitlines()
+    names = header.split(",")
+    iy, iu = names.index("y"), names.index("u")
+
+    def logged(k, v):
+        return (repr(25.0 - 1e3 * float(v)) if k == iy
+                else repr(-float(v)) if k == iu else v)
+    path.write_text("\n".join([header, *(",".join(logged(k, v) for k, v in
+                                                   enumerate(r.split(","))) for r in rows)])
+                    + "\n")
+    doc = yaml.safe_load((root / "dataset.yaml").read_text())
+    doc["units"] = {"y": "-mm", "position_zero": "25 mm", "u": "-V"}
+    (root / "dataset.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    truth, read = read_dataset(clean).experiments[0], read_dataset(root).experiments[0]
+    assert np.max(np.abs(read.y - truth.y)) < 1e-12  # [m]
+    assert np.array_equal(read.u, truth.u)
+    assert "y: -mm -> m (x -0.001: counted the other way round, + 0.025 m)" in read.notes
+    assert "u: -V -> V (x -1: counted the other way round)" in read.notes
+
+
+@pytest.mark.parametrize("units, words", [
+    ({"p1": "-bar"}, r"column 'p1': '-bar': a pressure has no direction to reverse; chamber "
+                     r"pressures logged under each other's names are renamed with columns: "
+                     r"\{p1: p2, p2: p1\}"),
+    ({"t": "-s"}, "column 't': '-s': a time has no direction to reverse"),
+    ({"y": "-inch"}, "column 'y': unknown unit '-inch'; accepted: m, mm, cm, um; with a minus before"),
+])
+def test_a_minus_where_there_is_no_direction_is_refused_naming_the_column(clean, tmp_path,
+                                                                          units, words):
+    root = tmp_path / "minus"
+    shutil.copytree(clean, root)
+    doc = yaml.safe_load((root / "dataset.yaml").read_text())
+    doc["units"] = units
+    (root / "dataset.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    with pytest.raises(DatasetError, match=f"dataset.yaml: units: {words}"):
+        read_dataset(root)
+
+
+def test_chamber_pressures_logged_under_each_others_names_are_renamed(clean, tmp_path):
+    """``columns: {p1: p2, p2: p1}`` reads a logger that crossed the two pressures."""
+    root = tmp_path / "crossed"
+    shutil.copytree(clean, root)
+    path = root / "sweep_1p5V.csv"
+    header, *rows = path.read_text().splitlines()
+    names = header.split(",")
+    i, j = names.index("p1"), names.index("p2")
+    names[i], names[j] = "p2", "p1"
+    path.write_text("\n".join([",".join(names), *rows]) + "\n")
+    doc = yaml.safe_load((root / "dataset.yaml").read_text())
+    doc["columns"] = {"p1": "p2", "p2": "p1"}
+    (root / "dataset.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    truth, read = read_dataset(clean).experiments[0], read_dataset(root).experiments[0]
+    assert np.array_equal(read.p1, truth.p1) and np.array_equal(read.p2, truth.p2)

@@ -32,6 +32,7 @@ same way for its columns ``t``, ``x`` (a length), ``p`` and ``F`` (a force):
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -67,6 +68,9 @@ ASSUMED = f"assumed, not declared ({REFERENCE})"
 #: it may be [m]: a sensor zeroed at an end stop of a long stroke.
 ZERO = "position_zero"
 ZERO_LIMIT = 0.5
+#: Quantities with a direction: their units may be declared reversed (``-mm``).
+SIGNED = ("voltage", "length", "velocity", "force")
+REVERSED = "-"
 
 
 @dataclass(frozen=True)
@@ -92,6 +96,8 @@ class Unit:
         """The conversion as a sentence, e.g. ``p1: bar gauge -> Pa absolute (x 100000, +
         100000 Pa)``, ``y: mm -> m (x 0.001, - 0.025 m)``."""
         how = [f"x {self.factor:.10g}"] if self.factor != 1.0 else []
+        if self.factor < 0:
+            how[0] += ": counted the other way round"
         if self.offset:
             sign = "+" if self.offset > 0 else "-"
             how.append(f"{sign} {abs(self.offset):.10g} {self.si.split()[0]}")
@@ -104,7 +110,11 @@ def accepted(column: str, quantities: Mapping[str, str] = EXPERIMENT) -> str:
     if quantities[column] == "pressure":
         return (f"{', '.join(PRESSURES)}, each absolute (e.g. 'bar', 'bar absolute', 'bara') "
                 f"or gauge (e.g. 'bar gauge', 'barg', 'kPa gauge', 'psig')")
-    return ", ".join(_SCALES[quantities[column]][1])
+    names = list(_SCALES[quantities[column]][1])
+    if quantities[column] not in SIGNED:
+        return ", ".join(names)
+    return (f"{', '.join(names)}; with a minus before the unit (e.g. '{REVERSED}{names[0]}') "
+            f"when the column counts the other way round")
 
 
 def parse(column: str, text: Any, reference: float = P_ATM,
@@ -126,8 +136,15 @@ def parse(column: str, text: Any, reference: float = P_ATM,
                 return unit
         else:
             si, scales = _SCALES[quantities[column]]
-            if name in scales:
-                return Unit(column, name, si, scales[name])
+            sign, bare = ((-1.0, name[1:].strip()) if name.startswith(REVERSED)
+                          and quantities[column] in SIGNED else (1.0, name))
+            if bare in scales:
+                return Unit(column, name, si, sign * scales[bare])
+    if name and name.startswith(REVERSED) and quantities[column] in ("time", "pressure"):
+        raise ValueError(f"column {column!r}: {text!r}: a {quantities[column]} has no direction "
+                         f"to reverse" + (f"; chamber pressures logged under each other's "
+                                          f"names are renamed with columns: {{p1: p2, p2: p1}}"
+                                          if column in ("p1", "p2") else ""))
     raise ValueError(f"column {column!r}: unknown unit {text!r}; accepted: "
                      f"{accepted(column, quantities)}")
 
@@ -235,11 +252,14 @@ def to_si(where: str, cols: dict[str, np.ndarray], units: Mapping[str, str] | No
     for column, text in per_column.items():
         unit = parse(column, text, reference, quantities)
         if column == "y" and ZERO in units:
-            unit = dataclasses.replace(unit, offset=-position_zero(units[ZERO]))
+            # the reading at mid-stroke, counted as the column counts
+            unit = dataclasses.replace(
+                unit, offset=-math.copysign(1.0, unit.factor) * position_zero(units[ZERO]))
         if column in cols and not unit.identity:
             cols[column] = unit.convert(cols[column])
+            gauge = unit.offset and quantities[column] == "pressure"
             assumed = (f"; the ambient pressure the gauge is relative to {ASSUMED}: a "
                        f"reference off by some kPa reads as a common bias of the pressure "
-                       f"sensors") if unit.offset and not given and reference_matters else ""
+                       f"sensors") if gauge and not given and reference_matters else ""
             notes.append(unit.note() + assumed)
     return notes
