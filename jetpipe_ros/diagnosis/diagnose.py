@@ -45,6 +45,7 @@ from jetpipe_ros.diagnosis.placement import place, subsystem_gaps
 from jetpipe_ros.diagnosis.separation import (adopt, separating_experiment, stand_ins,
                                               words)
 from jetpipe_ros.diagnosis.prediction import HORIZON, persistence, without_unknown_start
+from jetpipe_ros.diagnosis.signs import Signs, rewritten, measure as measure_signs
 from jetpipe_ros.diagnosis.score import (METRIC, Score, difference_gap, effective_samples,
                                          predict_all, score, window_errors)
 from jetpipe_ros.diagnosis.verdict import (NOISE_GAP, Ranked, Settled, Verdict, decide,
@@ -425,13 +426,21 @@ def diagnose_dataset(dataset: Dataset, nominal: ModelParams | None = None,
     # The linear algebra here is on small matrices: BLAS threads only spin and take the cores
     # the fitting processes need (measured: 2x slower per fit with them).
     with threadpool_limits(1):
+        progress("signs: which way each signal counts against the command")
+        signs = measure_signs(dataset, prepared, nominal)
+        progress(f"signs: {signs.words}")
+        said = [f"signs: {signs.words}"] if signs.changes else []
+        if signs.changes:
+            dataset = rewritten(dataset, signs.changes)
+            prepared = prepare(dataset)
         progress("time base: where the measurements sit against the command")
         aligned = align(prepared, nominal)
         progress(f"time base: {aligned.words}")
         if aligned.shift_rows:
             prepared = prepare(dataset, aligned.shift_rows)
-            prepared.corrections.append(f"time base: {aligned.words}")
-        return _diagnose(prepared, nominal, workers, progress, aligned)
+            said.append(f"time base: {aligned.words}")
+        prepared.corrections.extend(said)
+        return _diagnose(prepared, nominal, workers, progress, aligned, signs)
 
 
 def candidates_for(nominal: ModelParams, unjudged: Mapping[str, str]) -> list[Candidate]:
@@ -446,7 +455,7 @@ def candidates_for(nominal: ModelParams, unjudged: Mapping[str, str]) -> list[Ca
 
 
 def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
-              progress: Callable[[str], None], aligned: Alignment) -> Diagnosis:
+              progress: Callable[[str], None], aligned: Alignment, signs: Signs) -> Diagnosis:
     dt = prepared.dt
     prepared = without_unknown_start(prepared, nominal)
     progress(f"{len(prepared.records)} experiments, {prepared.seconds('train'):.1f} s train, "
@@ -564,7 +573,7 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
     result = _result(prepared, nominal, settled, ranking, alone_ranking, cal, cal_row, nom_hold,
                      aug_hold, localization, seen, separating, preds, errors,
                      [s.row for s in swaps])
-    result["data"].update(_data_json(prepared, aligned, unjudged))
+    result["data"].update(_data_json(prepared, aligned, signs, unjudged))
     result["visibility"]["imitated_by_recalibration"] = imitation
     hidden = imitated_effects(imitation) if result["verdict"]["effect"] == "none" else {}
     result["visibility"]["not_ruled_out"] = sorted(hidden)
@@ -624,13 +633,15 @@ def cannot_judge(prepared: Prepared) -> dict[str, str]:
     return out
 
 
-def _data_json(prepared: Prepared, aligned: Alignment, unjudged: dict[str, str]) -> dict:
+def _data_json(prepared: Prepared, aligned: Alignment, signs: Signs,
+               unjudged: dict[str, str]) -> dict:
     """What the diagnosis read and corrected: the ``data`` section's additions."""
     lost = sum(int((~(r.train | r.holdout)).sum()) for r in prepared.records)
     return {"sensors": list(prepared.sensors), "corrections": prepared.corrections,
             "time_offset_s": aligned.logger_offset(prepared.dt),
             "time_offset_stderr_s": aligned.stderr_s,
-            "time_base": aligned.to_json(prepared.dt), "cannot_judge": unjudged,
+            "time_base": aligned.to_json(prepared.dt), "signs": signs.to_json(),
+            "cannot_judge": unjudged,
             "rows_not_compared": lost}
 
 

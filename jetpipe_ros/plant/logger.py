@@ -14,13 +14,18 @@ otherwise. Each logger here rewrites a recorded dataset directory as one of them
   which it declares too: the plant's ambient is 1 bar, so a reader that took the model's 1 bar
   for the reference would see both pressures 1.3 kPa low;
 - ``one_pressure``: a bench with one pressure sensor (chamber 1): column ``p2`` dropped;
-- ``position_only``: no pressure sensors: ``p1`` and ``p2`` dropped.
+- ``position_only``: no pressure sensors: ``p1`` and ``p2`` dropped;
+- ``reversed_position``: a position sensor mounted the other way round: the position (and
+  velocity) logged with the opposite sign, nothing declared;
+- ``crossed_pressures``: the two pressure sensors wired to each other's channels: chamber 1's
+  pressure logged as ``p2`` and chamber 2's as ``p1``, nothing declared.
 
 Every one of them, the package's own included, logs no velocity (:func:`without_velocity`): a
 rig has no sensor for it.
 
 This is the self-check's "real" logger: written apart from the reader that corrects these
-artefacts (:mod:`jetpipe_ros.dataset`, :mod:`jetpipe_ros.diagnosis.alignment`), with the csv
+artefacts (:mod:`jetpipe_ros.dataset`, :mod:`jetpipe_ros.diagnosis.alignment`,
+:mod:`jetpipe_ros.diagnosis.signs`), with the csv
 module and its own ``dataset.yaml`` edit, so the check is not the reader against itself. Other
 sample rates are not a rewrite: the campaign is recorded at that rate (``rate``).
 """
@@ -114,6 +119,23 @@ def _drop(columns: tuple[str, ...]) -> Callable[[Path, np.random.Generator], Non
     return drop
 
 
+def reversed_position(root: Path, rng: np.random.Generator) -> None:
+    """The position (and velocity) with the opposite sign: a sensor mounted the other way."""
+    for path in _files(root):
+        header, data = _read(path)
+        for c in ("y", "v"):
+            if c in header:
+                data[:, header.index(c)] *= -1.0
+        _write(path, header, data)
+
+
+def crossed_pressures(root: Path, rng: np.random.Generator) -> None:
+    """Chamber 1's pressure under the name p2 and chamber 2's under p1."""
+    for path in _files(root):
+        header, data = _read(path)
+        _write(path, [{"p1": "p2", "p2": "p1"}.get(c, c) for c in header], data)
+
+
 one_pressure = _drop(("p2",))
 position_only = _drop(("p1", "p2"))
 
@@ -126,7 +148,8 @@ def without_velocity(root: Path) -> None:
 #: Logger name -> rewrite of a dataset directory in place.
 LOGGERS: dict[str, Callable[[Path, np.random.Generator], None]] = {
     "shifted": shifted, "lossy": lossy, "gauge_mm": gauge_mm, "one_pressure": one_pressure,
-    "position_only": position_only,
+    "position_only": position_only, "reversed_position": reversed_position,
+    "crossed_pressures": crossed_pressures,
 }
 #: Sensors each logger leaves (None: all three).
 SENSORS = {"one_pressure": ("y", "p1"), "position_only": ("y",)}

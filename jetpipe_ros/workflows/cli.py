@@ -106,6 +106,7 @@ def _selfcheck(args: argparse.Namespace) -> int:
 
 def add_command(subparsers) -> None:
     """Register ``diagnose`` and ``selfcheck``."""
+    from jetpipe_ros.plant.logger import LOGGERS
     p = subparsers.add_parser(
         "diagnose", help="find where the model departs from a dataset and which effect causes it",
         description="Fit every unmodelled effect on the training experiments of DATASET_DIR, "
@@ -155,11 +156,11 @@ def add_command(subparsers) -> None:
     c.add_argument("--truth", choices=("plant", "model"), default="plant",
                    help="where the data come from: the plant written apart from the candidates "
                         "(default), or the simulator's own effects")
-    c.add_argument("--logger", choices=("none", "shifted", "lossy", "gauge_mm", "one_pressure",
-                                        "position_only"), default="none",
+    c.add_argument("--logger", choices=("none", *LOGGERS), default="none",
                    help="rewrite each record as another data logger would (a row off, 1 %% of "
                         "rows lost with jittered stamps, gauge bar and mm declared, one or no "
-                        "pressure sensor; default: none, the package's own convention)")
+                        "pressure sensor, a position counted the other way, the pressures "
+                        "crossed; default: none, the package's own convention)")
     c.add_argument("--rate", type=float, default=1000.0,
                    help="sample rate of the records [Hz] (default 1000)")
     c.add_argument("--deviations", action=argparse.BooleanOptionalAction, default=True,
