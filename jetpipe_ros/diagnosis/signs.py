@@ -103,6 +103,11 @@ class Signs:
     words: str
 
     @property
+    def against(self) -> list[str]:
+        """The signals that, as logged, move against the model (:data:`Z_SIGN`)."""
+        return self.as_logged.beyond(-1.0)
+
+    @property
     def changes(self) -> tuple[str, ...]:
         """The changes to make to the record."""
         return self.taken.changes
@@ -112,6 +117,7 @@ class Signs:
         return {"changes": list(self.taken.changes),
                 "correlation": self.taken.correlation,
                 "as_logged_correlation": self.as_logged.correlation,
+                "against_as_logged": self.against,
                 "also_fit": [list(r.changes) for r in self.also_fit],
                 "explanation": self.words}
 
@@ -188,9 +194,9 @@ def measure(dataset: Dataset, prepared: Prepared, nominal: ModelParams) -> Signs
     also = tuple(x for x in ties if x is not best)
     said = ", ".join(f"{s} {r:+.2f}" for s, r in best.correlation.items())
     words = (f"the measured changes run against the nominal model's ({moved}); read with "
-             f"{best.words()} they follow it ({said}), corrected; declare "
-             f"{', '.join(DECLARATIONS[c] for c in best.changes)} in dataset.yaml to read it "
-             f"so everywhere")
+             f"{best.words()} they follow it ({said}), and the diagnosis reads them so; "
+             f"declare {', '.join(DECLARATIONS[c] for c in best.changes)} in dataset.yaml for "
+             f"every tool to read them so")
     if also:
         words += ("; the records fit as well with " + " or with ".join(x.words() for x in also)
                   + ", which they cannot tell apart")

@@ -27,14 +27,16 @@ def _diagnose(args: argparse.Namespace) -> int:
 
 def summary_lines(result: dict, out: str) -> list[str]:
     """The last lines ``jetpipe diagnose`` prints of a diagnosis (``result``: diagnosis.json's
-    content; ``out``: its folder): the time base, the verdict, what a ``none`` cannot rule out
-    and which pressure sensor would tell it (not when the model does not describe the
-    hardware: then no effect is in question), what the records cannot judge, the held-out gap
-    and where the files are."""
+    content; ``out``: its folder): the signs when they were not the contract's, the time
+    base, the verdict, what a ``none`` cannot rule out and which pressure sensor would tell it
+    (not when the model does not describe the hardware: then no effect is in question), what
+    the records cannot judge, the held-out gap and where the files are."""
     from jetpipe_ros.diagnosis.collinearity import ADDED, imitated_effects, telling
 
     v, g = result["verdict"], result["gap"]
-    lines = [f"time base: {result['data']['time_base']['explanation']}"]
+    signs = result["data"].get("signs")
+    lines = [f"signs: {signs['explanation']}"] if signs and signs["against_as_logged"] else []
+    lines.append(f"time base: {result['data']['time_base']['explanation']}")
     if not v["model_fits"]:
         lines += [v["reason"],  # it begins: the model does not describe this hardware
                   "verdict: no effect named (model_fits: false)"]

@@ -308,6 +308,10 @@ def summary(result: dict) -> str:
     cal = result["calibration"]
     lines = []
     off = ", ".join(cal["summary"]) or "all within 2 % of nominal"
+    signs = result["data"].get("signs")
+    if signs and signs["against_as_logged"]:
+        lines.append(f"<b>Signs ({'corrected' if signs['changes'] else 'as logged'}):</b> "
+                     f"{html.escape(signs['explanation'])}.")
     base = result["data"].get("time_base")
     if base and base["reading"] != "aligned":
         lines.append(f"<b>Time base ({html.escape(base['reading'])}):</b> "
