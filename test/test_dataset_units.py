@@ -27,6 +27,21 @@ def clean(tmp_path_factory):
     return root
 
 
+def _declare(root, **fields) -> None:
+    """Set top-level ``fields`` of ``root``'s dataset.yaml (``units``, ``columns``)."""
+    doc = yaml.safe_load((root / "dataset.yaml").read_text())
+    doc.update(fields)
+    (root / "dataset.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+
+
+def _copied(clean, root):
+    """``clean`` copied to ``root``: its CSV's path, column names and data rows (text)."""
+    shutil.copytree(clean, root)
+    path = root / "sweep_1p5V.csv"
+    header, *rows = path.read_text().splitlines()
+    return path, header.split(","), rows
+
+
 def _relogged(clean, tmp_path, reference: str | None):
     """The clean record as the gauge_mm logger writes it (bar relative to 101325 Pa, mm), its
     reference declared as ``reference`` or left out (None)."""
@@ -86,9 +101,7 @@ def test_a_bad_gauge_reference_is_refused_naming_it(clean, tmp_path, reference, 
 def test_a_bad_position_zero_is_refused_naming_it(clean, tmp_path, zero, words):
     root = tmp_path / "zero"
     shutil.copytree(clean, root)
-    doc = yaml.safe_load((root / "dataset.yaml").read_text())
-    doc["units"] = {"position_zero": zero}
-    (root / "dataset.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    _declare(root, units={"position_zero": zero})
     with pytest.raises(DatasetError, match=f"dataset.yaml: units: position_zero: .*{words}"):
         read_dataset(root)
 
@@ -98,19 +111,15 @@ def test_a_position_zeroed_at_an_end_stop_is_refused_with_the_declaration_to_mak
     """The same record with y from the retracted end stop in m and nothing declared: refused,
     the message giving the declaration that reads it (the stroke's half, 25 mm)."""
     root = tmp_path / "end_stop"
-    shutil.copytree(clean, root)
-    path = root / "sweep_1p5V.csv"
-    header, *rows = path.read_text().splitlines()
-    i = header.split(",").index("y")
+    path, names, rows = _copied(clean, root)
+    i = names.index("y")
     moved = [",".join(repr(float(v) + 0.025) if k == i else v
                       for k, v in enumerate(r.split(","))) for r in rows]
-    path.write_text("\n".join([header, *moved]) + "\n")
+    path.write_text("\n".join([",".join(names), *moved]) + "\n")
     with pytest.raises(DatasetError, match=r"look measured from an end stop.*"
                                            r"units: \{position_zero: 25 mm\}"):
         read_dataset(root)
-    doc = yaml.safe_load((root / "dataset.yaml").read_text())
-    doc["units"] = {"position_zero": "25 mm"}
-    (root / "dataset.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    _declare(root, units={"position_zero": "25 mm"})
     truth = read_dataset(clean).experiments[0]
     assert np.max(np.abs(read_dataset(root).experiments[0].y - truth.y)) < 1e-12
 
@@ -121,21 +130,16 @@ def test_a_position_and_command_counted_the_other_way_are_read_with_a_minus(clea
     the other way (the logged command is minus the contract's): declared ``y: -mm``,
     ``position_zero: 25 mm`` and ``u: -V``, both read back as the contract's, and said."""
     root = tmp_path / "reversed"
-    shutil.copytree(clean, root)
-    path = root / "sweep_1p5V.csv"
-    header, *rows = path.read_text().splitlines()
-    names = header.split(",")
+    path, names, rows = _copied(clean, root)
     iy, iu = names.index("y"), names.index("u")
 
     def logged(k, v):
         return (repr(25.0 - 1e3 * float(v)) if k == iy
                 else repr(-float(v)) if k == iu else v)
-    path.write_text("\n".join([header, *(",".join(logged(k, v) for k, v in
-                                                   enumerate(r.split(","))) for r in rows)])
-                    + "\n")
-    doc = yaml.safe_load((root / "dataset.yaml").read_text())
-    doc["units"] = {"y": "-mm", "position_zero": "25 mm", "u": "-V"}
-    (root / "dataset.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    path.write_text("\n".join([",".join(names), *(",".join(logged(k, v) for k, v in
+                                                             enumerate(r.split(",")))
+                                                    for r in rows)]) + "\n")
+    _declare(root, units={"y": "-mm", "position_zero": "25 mm", "u": "-V"})
     truth, read = read_dataset(clean).experiments[0], read_dataset(root).experiments[0]
     assert np.max(np.abs(read.y - truth.y)) < 1e-12  # [m]
     assert np.array_equal(read.u, truth.u)
@@ -148,15 +152,13 @@ def test_a_position_and_command_counted_the_other_way_are_read_with_a_minus(clea
                      r"pressures logged under each other's names are renamed with columns: "
                      r"\{p1: p2, p2: p1\}"),
     ({"t": "-s"}, "column 't': '-s': a time has no direction to reverse"),
-    ({"y": "-inch"}, "column 'y': unknown unit '-inch'; accepted: m, mm, cm, um; with a minus before"),
+    ({"y": "-inch"}, "column 'y': unknown unit '-inch'; accepted: m, mm, cm, um; with a minus"),
 ])
 def test_a_minus_where_there_is_no_direction_is_refused_naming_the_column(clean, tmp_path,
                                                                           units, words):
     root = tmp_path / "minus"
     shutil.copytree(clean, root)
-    doc = yaml.safe_load((root / "dataset.yaml").read_text())
-    doc["units"] = units
-    (root / "dataset.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    _declare(root, units=units)
     with pytest.raises(DatasetError, match=f"dataset.yaml: units: {words}"):
         read_dataset(root)
 
@@ -164,15 +166,10 @@ def test_a_minus_where_there_is_no_direction_is_refused_naming_the_column(clean,
 def test_chamber_pressures_logged_under_each_others_names_are_renamed(clean, tmp_path):
     """``columns: {p1: p2, p2: p1}`` reads a logger that crossed the two pressures."""
     root = tmp_path / "crossed"
-    shutil.copytree(clean, root)
-    path = root / "sweep_1p5V.csv"
-    header, *rows = path.read_text().splitlines()
-    names = header.split(",")
+    path, names, rows = _copied(clean, root)
     i, j = names.index("p1"), names.index("p2")
     names[i], names[j] = "p2", "p1"
     path.write_text("\n".join([",".join(names), *rows]) + "\n")
-    doc = yaml.safe_load((root / "dataset.yaml").read_text())
-    doc["columns"] = {"p1": "p2", "p2": "p1"}
-    (root / "dataset.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    _declare(root, columns={"p1": "p2", "p2": "p1"})
     truth, read = read_dataset(clean).experiments[0], read_dataset(root).experiments[0]
     assert np.array_equal(read.p1, truth.p1) and np.array_equal(read.p2, truth.p2)
