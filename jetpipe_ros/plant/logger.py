@@ -90,11 +90,9 @@ def lossy(root: Path, rng: np.random.Generator) -> None:
         _write(path, header, out)
 
 
-def gauge_mm(root: Path, rng: np.random.Generator) -> None:
-    """Pressures in bar gauge, the position in mm from the retracted end stop (and velocity in
-    mm/s), declared."""
-    scale = {"y": (1e3, HALF_STROKE_MM), "v": (1e3, 0.0), "p1": (1e-5, -P_ATM_LOGGER * 1e-5),
-             "p2": (1e-5, -P_ATM_LOGGER * 1e-5)}
+def _rescaled(root: Path, scale: dict[str, tuple[float, float]]) -> None:
+    """Every CSV's columns of ``scale`` (column -> (factor, offset)) logged as x * factor +
+    offset."""
     for path in _files(root):
         header, data = _read(path)
         for c, (factor, offset) in scale.items():
@@ -102,6 +100,13 @@ def gauge_mm(root: Path, rng: np.random.Generator) -> None:
                 i = header.index(c)
                 data[:, i] = data[:, i] * factor + offset
         _write(path, header, data)
+
+
+def gauge_mm(root: Path, rng: np.random.Generator) -> None:
+    """Pressures in bar gauge, the position in mm from the retracted end stop (and velocity in
+    mm/s), declared."""
+    _rescaled(root, {"y": (1e3, HALF_STROKE_MM), "v": (1e3, 0.0),
+                     "p1": (1e-5, -P_ATM_LOGGER * 1e-5), "p2": (1e-5, -P_ATM_LOGGER * 1e-5)})
     index = root / "dataset.yaml"
     doc = yaml.safe_load(index.read_text())
     doc["units"] = {"y": "mm", "v": "mm/s", "p1": "bar gauge", "p2": "bar gauge",
@@ -121,12 +126,7 @@ def _drop(columns: tuple[str, ...]) -> Callable[[Path, np.random.Generator], Non
 
 def reversed_position(root: Path, rng: np.random.Generator) -> None:
     """The position (and velocity) with the opposite sign: a sensor mounted the other way."""
-    for path in _files(root):
-        header, data = _read(path)
-        for c in ("y", "v"):
-            if c in header:
-                data[:, header.index(c)] *= -1.0
-        _write(path, header, data)
+    _rescaled(root, {"y": (-1.0, 0.0), "v": (-1.0, 0.0)})
 
 
 def crossed_pressures(root: Path, rng: np.random.Generator) -> None:
