@@ -34,7 +34,7 @@ COMMANDS = (
     "jetpipe_ros.replay",
     "jetpipe_ros.bag.export",
     "jetpipe_ros.workflows.cli",
-    "jetpipe_ros.identify.cli",
+    "jetpipe_ros.workflows.identify_command",
     "jetpipe_ros.twin.cli",
     "jetpipe_ros.identify.seal_cli",
 )

@@ -96,7 +96,7 @@ def test_a_signal_counted_the_other_way_is_found_and_read_by_the_contract(clean,
     truth = measure(read_dataset(reference), prepare(read_dataset(reference)), ModelParams())
     assert truth.changes == ()
     assert found.taken.correlation == pytest.approx(truth.taken.correlation, abs=0.02)
-    assert "the diagnosis reads them so; declare" in found.words
+    assert "and are read so; declare" in found.words
 
 
 def test_hardware_outside_the_model_class_is_read_as_logged(tmp_path):

@@ -195,7 +195,7 @@ def measure(dataset: Dataset, prepared: Prepared, nominal: ModelParams) -> Signs
     also = tuple(x for x in ties if x is not best)
     said = ", ".join(f"{s} {r:+.2f}" for s, r in best.correlation.items())
     words = (f"the measured changes run against the nominal model's ({moved}); read with "
-             f"{best.words()} they follow it ({said}), and the diagnosis reads them so; "
+             f"{best.words()} they follow it ({said}), and are read so; "
              f"declare {', '.join(DECLARATIONS[c] for c in best.changes)} in dataset.yaml for "
              f"every tool to read them so")
     if also:

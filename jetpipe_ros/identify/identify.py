@@ -57,6 +57,8 @@ class Identification:
     friction: FrictionResult | None = None
     skipped: dict[str, str] = field(default_factory=dict)  #: procedure -> why it did not run
     replays: list[Replay] = field(default_factory=list)
+    #: how the records were read before the procedures ran, if not as logged (their signs)
+    notes: list[str] = field(default_factory=list)
 
     def changes(self) -> dict[str, Any]:
         """The identified parameters that differ from the starting ones."""

@@ -29,6 +29,7 @@ def summary(ident: Identification) -> str:
     lines = ["jetpipe identify: " + ", ".join(
         f"{k}: {sum(r.kind == k for r in ident.recordings)}"
         for k in ("charge", "sweep", "ramp", "friction", "validation")) + " experiment(s)"]
+    lines += [f"- {note}" for note in ident.notes]
     for name, why in ident.skipped.items():
         lines.append(f"- {name}: SKIPPED, starting values kept: {why}")
     if ident.flow is not None:

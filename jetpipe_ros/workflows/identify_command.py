@@ -1,5 +1,12 @@
 """``jetpipe identify DATASET_DIR --out params.yaml``: the paper's procedures on a dataset.
 
+Before any procedure runs the record's signs are read as the diagnosis reads them
+(:mod:`jetpipe_ros.diagnosis.signs`): a command, position or pressures counted the other way
+would otherwise be identified as they are logged (a command counted the other way as a
+mirrored flow map, a position as friction of the wrong sign), and the parameters would describe
+no actuator of the data contract. A record read otherwise than logged is said on the console,
+in the parameter file's header and in the report.
+
 Both outputs (the parameter YAML and the HTML report) are checked before the work and written
 together at the end: both or, on an error, neither.
 """
@@ -10,6 +17,7 @@ from __future__ import annotations
 def _run(args) -> int:
     from jetpipe_ros import fileio
     from jetpipe_ros.dataset import COMPLETE, DatasetError, read_dataset
+    from jetpipe_ros.diagnosis.signs import rewritten
     from jetpipe_ros.identify.identify import PROCEDURES, identify
     from jetpipe_ros.identify.report import html_report, summary
     from jetpipe_ros.model import ModelParams, load_params
@@ -41,13 +49,33 @@ def _run(args) -> int:
                 f"one chamber alone charges only from its rest pressure up, and the flow map "
                 f"below it would be extrapolated); with fewer sensors 'jetpipe diagnose' judges "
                 f"the model on what there is (docs/real_logs.md)")
+    signs = read_signs(data, base)
+    said = [f"signs: {signs.words}"] if signs and (signs.changes or signs.against) else []
+    if said:
+        data = rewritten(data, signs.changes)
     ident = identify(data, base, chosen, required)
+    ident.notes.extend(said)
     text = summary(ident)
     header = "".join(f"# {line}\n" for line in text.splitlines())
     fileio.write_files({out: header + ident.params.to_ros_yaml(), report: html_report(ident)})
     print(text)
     print(f"parameters -> {out}\nreport -> {report}")
     return 0
+
+
+def read_signs(data, base):
+    """Which way ``data``'s signals count, against the model ``base``
+    (:func:`jetpipe_ros.diagnosis.signs.measure`); None for records too short to compare (the
+    diagnosis' own minimum of training data), which the procedures then judge alone."""
+    from jetpipe_ros.dataset import DatasetError
+    from jetpipe_ros.diagnosis.data import prepare
+    from jetpipe_ros.diagnosis.signs import measure
+
+    try:
+        prepared = prepare(data)
+    except DatasetError:
+        return None
+    return measure(data, prepared, base)
 
 
 def add_command(subparsers) -> None:
