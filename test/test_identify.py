@@ -9,6 +9,8 @@ for one lucky seed only."""
 
 from __future__ import annotations
 
+import shutil
+
 import numpy as np
 import pytest
 from scipy import optimize
@@ -219,6 +221,7 @@ def test_round_trip_through_the_cli(dataset, tmp_path, capsys):
     assert main(["identify", str(dataset.root), "--out", str(out), "--params", str(start)]) == 0
     printed = capsys.readouterr().out
     assert "paper: max about 0.0005 kg/s" in printed and "(paper: < 5 %)" in printed
+    assert "time base: not checked: no closed-loop record" in printed
     assert (tmp_path / "params.report.html").read_text().count("<img") >= 5
     exp = next(x for e, x in dataset if e.role == "holdout")
     errors = {}
@@ -258,6 +261,31 @@ def test_a_command_counted_the_other_way_is_read_as_the_contract_counts(dataset,
     for key in ("flow.coefficients", "valve.lag_zero", "valve.lag_pole",
                 "friction.entry.coulomb", "friction.exit.viscous"):
         assert got[key] == pytest.approx(result.params[key], rel=1e-9, abs=1e-12), key
+
+
+def test_a_logger_a_row_early_is_found_by_the_controller_and_moved_back(tmp_path):
+    """The default campaign (closed-loop records among its experiments) logged a row early, as
+    the self-check's ``shifted`` logger writes it (written apart from the reader): identified as
+    logged, the valve's delay would come out a row (1 ms) short; the controller's reaction shows
+    the offset, the records are moved back, and the delay is the aligned record's within
+    0.1 ms. The aligned record says nothing of its time base; records without a closed loop
+    (the paper's experiments) say that it was not checked."""
+    from jetpipe_ros.campaign import campaign_dataset
+    from jetpipe_ros.plant.logger import log
+
+    aligned = campaign_dataset(NOISY, tmp_path / "aligned", seed=3)
+    early = tmp_path / "early"
+    shutil.copytree(aligned, early)
+    log("shifted", early, 4)
+    delays, said = {}, {}
+    for root in (aligned, early):
+        out = tmp_path / f"{root.name}.yaml"
+        assert main(["identify", str(root), "--out", str(out), "--procedures", "valve"]) == 0
+        delays[root.name], said[root.name] = load_params(out)["valve.delay"], out.read_text()
+    assert "time base" not in said["aligned"]
+    assert "the logger wrote each measurement 1 row(s) early" in said["early"]
+    assert delays["early"] == pytest.approx(delays["aligned"], abs=1e-4)
+    assert delays["aligned"] == pytest.approx(TRUTH["valve.delay"], abs=5e-4)
 
 
 def test_no_usable_experiment_names_every_procedure(tmp_path, capsys):

@@ -362,6 +362,14 @@ def _measured_rows(rec: Record, signal: str) -> np.ndarray:
     return x[rec.train | rec.holdout] if (rec.train | rec.holdout).any() else x
 
 
+def shifted(dataset: Dataset, rows: int) -> Dataset:
+    """``dataset`` with every experiment's measured columns moved ``rows`` rows later relative
+    to its command, as :func:`prepare`'s ``shift_rows`` moves them (for tools that read the
+    experiments themselves)."""
+    return dataclasses.replace(dataset, experiments=[_shifted(exp, rows)
+                                                     for exp in dataset.experiments])
+
+
 def _shifted(exp: Experiment, rows: int) -> Experiment:
     """The experiment with its measured columns moved ``rows`` rows later relative to the
     command (``rows`` > 0: the logger wrote each measurement that many rows early)."""

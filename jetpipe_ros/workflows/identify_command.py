@@ -1,11 +1,19 @@
 """``jetpipe identify DATASET_DIR --out params.yaml``: the paper's procedures on a dataset.
 
-Before any procedure runs the record's signs are read as the diagnosis reads them
-(:mod:`jetpipe_ros.diagnosis.signs`): a command, position or pressures counted the other way
-would otherwise be identified as they are logged (a command counted the other way as a
-mirrored flow map, a position as friction of the wrong sign), and the parameters would describe
-no actuator of the data contract. A record read otherwise than logged is said on the console,
-in the parameter file's header and in the report.
+Before any procedure runs the records' conventions are read as the diagnosis reads them:
+
+- the signs (:mod:`jetpipe_ros.diagnosis.signs`): a command, position or pressures counted the
+  other way would otherwise be identified as logged (a command counted the other way as a
+  mirrored flow map), parameters of no actuator of the data contract;
+- the time base, by the controller's reaction alone
+  (:func:`jetpipe_ros.diagnosis.alignment.controller_reaction`): a logger that writes each
+  measurement a row early would otherwise take a row off the valve's delay (the default
+  campaign logged so: 0.84 ms identified where the aligned record gives 1.83). The
+  diagnosis' other evidence, the model's own delay, is not used: identification is what
+  measures that delay. Without a closed-loop record nothing tells, and the summary says so.
+
+What was read otherwise than logged, or could not be checked, is said in the summary (on the
+console, in the parameter file's header and in the report).
 
 Both outputs (the parameter YAML and the HTML report) are checked before the work and written
 together at the end: both or, on an error, neither.
@@ -17,7 +25,6 @@ from __future__ import annotations
 def _run(args) -> int:
     from jetpipe_ros import fileio
     from jetpipe_ros.dataset import COMPLETE, DatasetError, read_dataset
-    from jetpipe_ros.diagnosis.signs import rewritten
     from jetpipe_ros.identify.identify import PROCEDURES, identify
     from jetpipe_ros.identify.report import html_report, summary
     from jetpipe_ros.model import ModelParams, load_params
@@ -49,10 +56,7 @@ def _run(args) -> int:
                 f"one chamber alone charges only from its rest pressure up, and the flow map "
                 f"below it would be extrapolated); with fewer sensors 'jetpipe diagnose' judges "
                 f"the model on what there is (docs/real_logs.md)")
-    signs = read_signs(data, base)
-    said = [f"signs: {signs.words}"] if signs and (signs.changes or signs.against) else []
-    if said:
-        data = rewritten(data, signs.changes)
+    data, said = read_conventions(data, base)
     ident = identify(data, base, chosen, required)
     ident.notes.extend(said)
     text = summary(ident)
@@ -63,19 +67,44 @@ def _run(args) -> int:
     return 0
 
 
-def read_signs(data, base):
-    """Which way ``data``'s signals count, against the model ``base``
-    (:func:`jetpipe_ros.diagnosis.signs.measure`); None for records too short to compare (the
-    diagnosis' own minimum of training data), which the procedures then judge alone."""
+def read_conventions(data, base):
+    """``data`` read as the data contract counts its signs and pairs its rows, and what was
+    said of it: the signs against the model ``base`` (:func:`signs.measure`), the time base by
+    the controller's reaction. Records too short for the diagnosis' comparison (its minimum of
+    training data) are returned as logged, nothing said: the procedures judge them alone."""
     from jetpipe_ros.dataset import DatasetError
-    from jetpipe_ros.diagnosis.data import prepare
-    from jetpipe_ros.diagnosis.signs import measure
+    from jetpipe_ros.diagnosis.alignment import controller_reaction
+    from jetpipe_ros.diagnosis.data import prepare, shifted
+    from jetpipe_ros.diagnosis.signs import measure, rewritten
 
     try:
         prepared = prepare(data)
     except DatasetError:
-        return None
-    return measure(data, prepared, base)
+        return data, []
+    said = []
+    signs = measure(data, prepared, base)
+    if signs.changes or signs.against:
+        said.append(f"signs: {signs.words}")
+    if signs.changes:
+        data = rewritten(data, signs.changes)
+        prepared = prepare(data)
+    rows, z = controller_reaction(prepared)
+    ms = prepared.dt * 1e3
+    if rows is None:
+        said.append(f"time base: not checked: no closed-loop record whose controller reacts to "
+                    f"the position's noise, which alone tells where a logger put the "
+                    f"measurements without a model; a logger that wrote each measurement a row "
+                    f"early (after the command beside it acted) would make the valve's delay "
+                    f"{ms:.3g} ms shorter here (docs/real_logs.md)")
+    elif rows:
+        data = shifted(data, rows)
+        said.append(f"time base: the closed-loop records' controller reacts to the position "
+                    f"{abs(rows)} row(s) {'after' if rows > 0 else 'before'} the row it is "
+                    f"logged on ({z:.0f} standard errors): the logger wrote each measurement "
+                    f"{abs(rows)} row(s) {'early' if rows > 0 else 'late'}; moved "
+                    f"{abs(rows) * ms:.3g} ms {'later' if rows > 0 else 'earlier'} before "
+                    f"identifying, as the diagnosis does")
+    return data, said
 
 
 def add_command(subparsers) -> None:
