@@ -101,7 +101,7 @@ def test_a_signal_counted_the_other_way_is_found_and_read_by_the_contract(clean,
 
 def test_hardware_outside_the_model_class_is_read_as_logged(tmp_path):
     """The on/off-valve cylinder the model does not describe: its signals follow the model
-    weakly (the position 0.42) but not against it, so nothing is turned round."""
+    weakly (the position 0.44) but not against it, so nothing is turned round."""
     root = write_foreign_dataset(tmp_path / "data")
     params = load_params(write_foreign_params(tmp_path / "params.yaml"))
     found = measure(read_dataset(root), prepare(read_dataset(root)), params)
