@@ -211,6 +211,34 @@ def test_a_spreadsheet_export_reads_as_the_plain_file(tmp_path, sep, name):
     assert exp.notes == [f"read as {name}-separated, a decimal comma accepted"]
 
 
+def test_a_spreadsheets_unicode_text_reads_as_the_plain_file(tmp_path):
+    """Excel's "Unicode text" export: UTF-16 with its byte-order mark, tab-separated, decimal
+    commas. Read as UTF-8, its header was a row of unreadable characters and the file refused
+    for missing columns; now the same numbers as the comma-separated file, the reading said."""
+    full = signals(np.arange(500) * 1e-3)
+    plain = read_experiment(write(tmp_path / "plain.csv", full))
+    rows = ["\t".join(f"{full[c][i]:.17g}".replace(".", ",") for c in COLUMNS)
+            for i in range(500)]
+    path = tmp_path / "export.txt"
+    path.write_bytes(("\r\n".join(["\t".join(COLUMNS), *rows]) + "\r\n").encode("utf-16"))
+    exp = read_experiment(path)
+    for c in COLUMNS:
+        np.testing.assert_array_equal(getattr(exp, c), getattr(plain, c))
+    assert exp.notes == ["read as UTF-16 text (a spreadsheet's Unicode text)",
+                         "read as tab-separated, a decimal comma accepted"]
+
+
+def test_other_column_names_are_refused_with_how_to_name_them(tmp_path):
+    """A header in other names (here the contract's, upper case) is refused naming the file,
+    the line, the missing columns, the header read and how to declare the file's own names."""
+    full = signals(np.arange(300) * 1e-3)
+    path = write(tmp_path / "upper.csv", {c.upper(): v for c, v in full.items()})
+    with pytest.raises(DatasetError, match=r"upper.csv: line 1: missing column\(s\) t, u "
+                                           r"\(header has T, U, Y, P1, P2.*name the file's "
+                                           r"own in dataset.yaml, e.g. columns: \{Time: t"):
+        read_experiment(path)
+
+
 def test_a_loggers_own_column_names_are_declared_in_the_index(tmp_path):
     """``columns:`` maps a logger's names onto the contract's, at the top level and per
     experiment (the entry's own override); units are declared by the contract's names. A name

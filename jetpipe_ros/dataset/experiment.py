@@ -35,6 +35,8 @@ from jetpipe_ros.model.limits import NOMINAL, Limits
 #: Column separators a header is searched for, in order (a comma first: a comma-separated
 #: file has no other), with their names.
 DELIMITERS = {",": "comma", ";": "semicolon", "\t": "tab"}
+#: Byte-order marks of UTF-16 text (little- and big-endian).
+UTF16_MARKS = (b"\xff\xfe", b"\xfe\xff")
 #: Columns every experiment needs.
 REQUIRED = ("t", "u")
 #: Measured columns, optional each; an experiment needs at least one of them.
@@ -94,8 +96,10 @@ def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
     path = Path(path)
     required, any_of = tuple(required), tuple(any_of)
     declared(f"{path}: units", units)  # a bad declaration before the file
-    cols, line_nos, read = read_columns(path, required, (*COMPLETE, *OPTIONAL), any_of=any_of,
-                                        rename=columns)
+    cols, line_nos, read = read_columns(
+        path, required, (*COMPLETE, *OPTIONAL), any_of=any_of, rename=columns,
+        hint="; the contract's names are t, u, y, p1, p2 (docs/data.md): name the file's own "
+             "in dataset.yaml, e.g. columns: {Time: t, Command: u}")
     notes = read + to_si(f"{path}: units", cols, units)
     timebase.check_increasing(path, cols["t"], line_nos)
     plausibility.check(path, cols, limits, line_nos)
@@ -125,12 +129,16 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
     unreadable raises DatasetError naming the file, the line and the column (``hint`` says
     what the columns should hold); so does an infinite value."""
     try:
+        with path.open("rb") as raw:
+            utf16 = raw.read(2) in UTF16_MARKS
         # utf-8-sig: a spreadsheet's byte-order mark is not part of the first column's name;
         # the numbers are ASCII, so an undecodable byte in a comment or label harms nothing.
-        handle = path.open(newline="", encoding="utf-8-sig", errors="replace")
+        # A UTF-16 mark: a spreadsheet's "Unicode text" (Excel's, tab-separated).
+        handle = path.open(newline="", encoding="utf-16" if utf16 else "utf-8-sig",
+                           errors="replace")
     except OSError as exc:
         raise DatasetError(f"{path}: cannot open: {exc.strerror}") from exc
-    notes: list[str] = []
+    notes: list[str] = ["read as UTF-16 text (a spreadsheet's Unicode text)"] if utf16 else []
     with handle:
         first, head = 0, ""
         for first, head in enumerate(handle, start=1):
