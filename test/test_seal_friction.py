@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import html
 import json
 import re
 import shutil
@@ -14,9 +15,9 @@ import pytest
 from jetpipe_ros.cli import main
 from jetpipe_ros.dataset import DatasetError, read_dataset, read_records
 from jetpipe_ros.identify.drift import level_drift
-from jetpipe_ros.identify.seal import (FORMS, fit_form, measured_presliding, no_profile, planes_of,
-                                       prepare, scores, velocity_window)
-from jetpipe_ros.model import load_params
+from jetpipe_ros.identify.seal import (FORMS, STATIC_FORMS, fit_form, measured_presliding,
+                                       no_profile, planes_of, prepare, scores, velocity_window)
+from jetpipe_ros.model import ModelParams, load_params
 from jetpipe_ros.model.actuator import simulate
 from jetpipe_ros.model.flow import P_ATM
 from jetpipe_ros.model.friction import (LEVEL_FLOOR, MAXWELL_SLIP, element_slips, prescribed_friction,
@@ -384,6 +385,61 @@ def test_kernel_scales_the_level_by_the_bore_profile(form):
     expected = factor * (f_c + (f_s - f_c) * np.exp(-(v / v_s) ** 2)) + f_v * v
     assert np.max(np.abs(trace.friction[sliding] - expected)) < 0.2
     assert np.ptp(factor) > 0.5
+
+
+def test_a_weak_seals_reversals_are_measured_as_a_strong_ones():
+    """PK at 1 bar with its friction divided by twenty (levels of 0.1-0.2 N): the measured
+    pre-sliding displacements are the full-size record's, reversal for reversal. A fixed 1 N
+    least swing had skipped every reversal (``measured: null``)."""
+    record, = [r for r in read_records(SEALS) if r.name == "PK_1bar"]
+    weak = dataclasses.replace(record, force=record.friction / 20 +
+                               (record.p - P_ATM) * record.area)
+    strong = measured_presliding(prepare(record))
+    assert strong.size >= 10
+    np.testing.assert_allclose(measured_presliding(prepare(weak)), strong)
+
+
+def test_what_the_records_cannot_fit_is_said_and_not_written_as_fitted(tmp_path, capsys):
+    """One seal, two copies of the O-ring record at 3 bar: one with only its outward strokes
+    kept (the inward ones lost, as a logger that drops them), one whose rod stands still for
+    its first 60 % (an idle lead-in). The second has no moving sample to fit and is left out;
+    no fitted sample moves inward. Both said on the console, in friction.json and the report;
+    the entry planes written are the starting parameters' (they had been a 1 N placeholder
+    presented as fitted), and with no reversal fitted a static form is selected (LuGre had
+    been, its bristles identified from nothing)."""
+    rows = np.loadtxt(SEALS / "O-ring_3bar.csv", delimiter=",", skiprows=1)
+    t, x = rows[:, 0], rows[:, 1]
+    v = np.gradient(x, t)
+    idle = rows.copy()
+    half = t < 0.6 * t[-1]  # beyond the fitted half: the velocity's window reaches over
+    idle[half, 1] = x[~half][0]
+    idle[half, 3] = (idle[half, 2] - P_ATM) * AREA + np.random.default_rng(2).normal(
+        0.0, 0.05, half.sum())
+    root = tmp_path / "rig"
+    root.mkdir()
+    for name, data in (("out.csv", rows[v > 2e-3]), ("idle.csv", idle)):
+        np.savetxt(root / name, data, delimiter=",", header="t,x,p,F", comments="",
+                   fmt=["%.3f", "%.6f", "%.0f", "%.4f"])
+    (root / "records.yaml").write_text("records:\n" + "".join(
+        f"  - {{file: {n}, seal: O-ring, bore: {BORE}}}\n" for n in ("out.csv", "idle.csv")))
+    out = tmp_path / "out"
+    assert main(["friction", str(root), "--out", str(out), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    said = ["idle.csv: no moving sample in its first 0.5",
+            "entry direction (v < 0): no fitted sample moves that way"]
+    doc = json.loads((out / "friction.json").read_text())
+    seal = doc["seals"]["O-ring"]
+    report = html.unescape((out / "report.html").read_text())
+    for words in said:
+        assert words in printed and words in report and any(words in w for w in
+                                                             seal["warnings"])
+    assert seal["unfitted_directions"] == ["entry"]
+    assert seal["records"]["idle"]["fitted"] is False and seal["records"]["out"]["fitted"]
+    assert seal["selected"] in STATIC_FORMS
+    written, nominal = load_params(out / "friction.yaml"), ModelParams()
+    for q in ("breakaway", "coulomb", "viscous", "stribeck_velocity"):
+        assert written[f"friction.entry.{q}"] == nominal[f"friction.entry.{q}"]
+    assert written["friction.exit.coulomb"] != nominal["friction.exit.coulomb"]
 
 
 def test_a_rod_that_never_moves_is_one_line_naming_the_record(tmp_path, capsys):

@@ -33,7 +33,9 @@ the seal's records); a ``role: holdout`` record is
 not fitted and is predicted by the seal's planes. Every record is judged on its held-out part,
 on moving samples (speed above :data:`MIN_SPEED`, the velocity's window clear of the logger's
 gaps). The form selected is the one with the lowest median held-out NRMSE, among the static
-forms when no record reverses (:func:`select`).
+forms unless records reverse in their fitted and judged parts (:func:`select`). What the fit
+could not use is said (:meth:`SealResult.warnings`): a record with no moving sample in its
+fitted part, a direction in which no fitted sample moves.
 """
 
 from __future__ import annotations
@@ -81,6 +83,10 @@ ELEMENTS = 3
 #: Records of one seal whose mean pressures span less than this [bar] share one pressure.
 MIN_PRESSURE_SPAN = 0.5
 DIRECTIONS = ("exit", "entry")
+#: Least swing of the friction across a reversal counted as one [N] (the measured pre-sliding),
+#: for levels above it; for a seal whose levels are below it, the larger level: alone, 1 N had
+#: skipped every reversal of a copy of the public PK records with its friction divided by 20.
+MIN_SWING = 1.0
 #: Evaluations of the joint fit of a seal's records that refines their combined fits.
 SEAL_NFEV = 40
 #: Forms fitted with a bore profile: along a prescribed motion their friction is linear in the
@@ -187,14 +193,15 @@ class FormFit:
                                    prep.record.x, prep.p1, prep.p2, prep.record.dt,
                                    self.sigma0, 0.0, self.slips, LEVEL_FLOOR)
 
-    def params(self, base: ModelParams, centre: float = 0.0, scale: float = 1.0
-               ) -> ModelParams:
+    def params(self, base: ModelParams, centre: float = 0.0, scale: float = 1.0,
+               keep: tuple[str, ...] = ()) -> ModelParams:
         """``base`` with this fit's planes (held at the rig's floor, :data:`LEVEL_FLOOR`, not
         the paper's), its bore profile (knots shifted by ``-centre`` [m]: the records' position
         that becomes the model's y = 0) and, for a dynamic form, its friction_dynamics. Its
         forces (breakaway, viscous and Coulomb planes, LuGre's stiffness) are multiplied by
         ``scale``: a seal's friction grows with its circumference, its lengths (v_s, the
-        pre-sliding displacements) do not."""
+        pre-sliding displacements) do not. The phases in ``keep`` (``entry``, ``exit``) keep
+        ``base``'s planes: a direction the records never fitted."""
         planes = self.planes.copy()
         planes[:, [BREAKAWAY, VISCOUS, COULOMB]] *= scale
         changes: dict[str, Any] = {"friction.floor": LEVEL_FLOOR}
@@ -203,6 +210,8 @@ class FormFit:
             changes["friction.profile.exit"] = [float(f) for f in self.profile[1]]
             changes["friction.profile.entry"] = [float(f) for f in self.profile[2]]
         for phase, i in (("entry", 0), ("exit", 1)):
+            if phase in keep:
+                continue
             for q, row in (("breakaway", BREAKAWAY), ("stribeck_velocity", STRIBECK),
                            ("viscous", VISCOUS), ("coulomb", COULOMB)):
                 changes[f"friction.{phase}.{q}"] = [float(c) for c in planes[i, row]]
@@ -622,7 +631,9 @@ def measured_presliding(prep: Prepared, fraction: float = 0.9) -> np.ndarray:
     """Displacement [m] after each reversal of a record at which the measured friction has
     covered ``fraction`` of its swing from the level before the reversal (median over the last
     2 mm before it) to the level after (median over 3-5 mm after it); reversals whose
-    transition lies in a logger's gap are skipped."""
+    transition lies in a logger's gap, or whose friction swings by less than
+    :data:`MIN_SWING` or, for a seal whose levels are below it, the larger of the two levels
+    (a true reversal swings by about their sum), are skipped."""
     x, f, v, ok = prep.record.x, prep.friction, prep.v, prep.record.valid
     out = []
     turns = np.flatnonzero(np.sign(v[1:]) != np.sign(v[:-1])) + 1
@@ -636,7 +647,7 @@ def measured_presliding(prep: Prepared, fraction: float = 0.9) -> np.ndarray:
         if before.size < 3 or level_after.size < 3:
             continue
         f0, f1 = np.median(f[before]), np.median(f[level_after])
-        if sign * (f1 - f0) < 1.0:
+        if sign * (f1 - f0) < min(MIN_SWING, max(abs(f0), abs(f1))):
             continue
         reached = after[sign * (f[after] - f0) >= fraction * sign * (f1 - f0)]
         if reached.size and ok[max(0, k - 3):reached[0] + 2].all():
@@ -680,10 +691,26 @@ class SealResult:
     seal_fits: dict[str, FormFit]  #: form -> the seal's fit over pressure
     scores: dict[str, dict[str, dict[str, float]]]  #: form -> record name -> metrics
     selected: str
+    #: training records (not ``role: holdout``) with no moving sample in their fitted part,
+    #: left out of the fit and judged with the seal's fit, by file
+    left_out: tuple[str, ...] = ()
+    #: directions in which no fitted sample moves: their planes are not fitted (the starting
+    #: parameters' are written, :func:`jetpipe_ros.identify.seal_report.params_yaml`)
+    unfitted: tuple[str, ...] = ()
 
     def model_of(self, form: str, prep: Prepared) -> FormFit:
         """The fit that predicts a record: its own, or the seal's for a held-out record."""
         return self.per_record[form].get(prep.record.name, self.seal_fits[form])
+
+    def warnings(self, split: float) -> list[str]:
+        """What the fit could not use, in words: records left out, directions not fitted."""
+        out = [f"{file}: no moving sample in its first {split:g} (the rod still, or in a "
+               f"logger's gap there): left out of the fit, judged with the seal's fit"
+               for file in self.left_out]
+        out += [f"{direction} direction ({'v > 0' if direction == 'exit' else 'v < 0'}): no "
+                f"fitted sample moves that way, so its planes are not fitted; the starting "
+                f"parameters' are written" for direction in self.unfitted]
+        return out
 
 
 def training(seal: str, preps: list[Prepared], split: float = 0.5) -> list[Prepared]:
@@ -737,23 +764,32 @@ def identify_seal(seal: str, preps: list[Prepared], split: float = 0.5,
         files = ", ".join(p.record.file for p in preps)
         raise DatasetError(f"{f'seal {seal}: ' if seal else ''}no held-out moving samples in "
                            f"{files} (split {split:g})")
+    left_out = tuple(p.record.file for p in preps
+                     if p.record.role != "holdout" and p not in trained)
+    unfitted = tuple(d for d in DIRECTIONS if not any(p.moves(d) for p in trained))
     return SealResult(seal=seal, preps=preps, per_record=per_record, seal_fits=seal_fits,
-                      scores=judged, selected=select(judged, preps))
+                      scores=judged, selected=select(judged, preps), left_out=left_out,
+                      unfitted=unfitted)
 
 
 def select(judged: dict[str, dict[str, dict[str, float]]], preps: list[Prepared]) -> str:
     """The form with the lowest median held-out NRMSE over the records; only the static forms
-    when no record reverses its motion (:func:`reverses`): pre-sliding and frictional memory
-    show after a reversal, so without one the dynamic forms' scores measure nothing they add."""
-    forms = FORMS if any(reverses(p) for p in preps) else STATIC_FORMS
+    unless a record reverses its motion in its fitted part and one in its judged part
+    (:func:`reverses`): pre-sliding and frictional memory show after a reversal, so without
+    one fitted the dynamic forms' parameters are not identified, and without one judged their
+    scores measure nothing they add (two records cut to their first 5 s, one stroke each
+    fitted: LuGre had been selected at 71 % held-out NRMSE)."""
+    dynamic = (any(reverses(p, p.train) for p in preps)
+               and any(reverses(p, p.test) for p in preps))
+    forms = FORMS if dynamic else STATIC_FORMS
     return min(forms, key=lambda form: float(np.median(
         [s["nrmse"] for s in judged[form].values()])))
 
 
-def reverses(prep: Prepared) -> bool:
-    """True when the record's moving samples go both ways (a reversal the dynamic forms'
-    pre-sliding can be judged on)."""
-    moving = prep.train | prep.test
+def reverses(prep: Prepared, samples: np.ndarray | None = None) -> bool:
+    """True when the record's moving samples (those of ``samples``, a mask: default fitted
+    and judged) go both ways (a reversal the dynamic forms' pre-sliding shows after)."""
+    moving = prep.train | prep.test if samples is None else samples
     return bool(np.any(prep.v[moving] > 0) and np.any(prep.v[moving] < 0))
 
 

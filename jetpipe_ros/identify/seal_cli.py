@@ -133,6 +133,8 @@ def _run(args) -> int:
         print(f"{form:16s} held-out median NRMSE {s['median_nrmse'] * 100:5.2f} %  "
               f"R^2 within direction {s['median_r2_within']:5.2f}")
     for res in results:
+        for warning in res.warnings(args.split):
+            print(f"seal {res.seal or '(unnamed)'}: {warning}")
         print(f"seal {res.seal or '(unnamed)'}: selected {res.selected}")
         drift = describe({p.record.name: drifts[p.record.name] for p in res.preps})
         if drift:

@@ -64,6 +64,7 @@ def to_json(results: list[SealResult], split: float, notes: list[str],
             measured = measured_presliding(prep)
             records[prep.record.name] = {
                 "file": prep.record.file, "role": prep.record.role or "train",
+                "fitted": prep.record.name in res.per_record[FORMS[0]],
                 "mean_pressure_pa": prep.pressure,
                 "heldout_moving_samples": int(prep.test.sum()),
                 "scores": {form: res.scores[form].get(prep.record.name) for form in FORMS},
@@ -77,7 +78,8 @@ def to_json(results: list[SealResult], split: float, notes: list[str],
                                for form in FORMS if prep.record.name in res.per_record[form]}}
         profile = res.seal_fits[res.selected].profile
         seals[res.seal or "seal"] = {
-            "selected": res.selected,
+            "selected": res.selected, "unfitted_directions": list(res.unfitted),
+            "warnings": res.warnings(split),
             "parameters": {form: res.seal_fits[form].values for form in FORMS},
             "profile": {"position_m": profile[0].tolist(), "exit": profile[1].tolist(),
                         "entry": profile[2].tolist(), "centre_m": centre(res)},
@@ -86,7 +88,9 @@ def to_json(results: list[SealResult], split: float, notes: list[str],
             "metric": "on held-out moving samples: NRMSE = RMS error / range of the measured "
                       "friction; R^2; R^2 within each direction (exit v > 0, entry v < 0) and "
                       "pooled (r2_within)",
-            "summary": summary_table(results), "seals": seals, "notes": notes}
+            "summary": summary_table(results), "seals": seals,
+            "notes": notes + [f"{f'seal {res.seal}: ' if res.seal else ''}{w}"
+                              for res in results for w in res.warnings(split)]}
 
 
 def centre(res: SealResult) -> float:
@@ -319,4 +323,7 @@ def params_yaml(res: SealResult, base: ModelParams, to_piston: bool = False) -> 
     if fit.profile.shape[1]:
         header += (f"# bore profile: the records' position {shift * 1e3:.2f} mm is the model's "
                    f"y = 0\n")
-    return header + fit.params(base, shift, scale).to_ros_yaml(only_changed=True)
+    header += "".join(f"# {d} direction: not fitted (no fitted sample moves that way): the "
+                      f"starting parameters' planes\n" for d in res.unfitted)
+    return header + fit.params(base, shift, scale, keep=res.unfitted).to_ros_yaml(
+        only_changed=True)
