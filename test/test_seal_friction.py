@@ -333,6 +333,24 @@ def test_records_yaml_errors_name_the_field(tmp_path, entry, message):
         read_records(tmp_path)
 
 
+def test_a_record_far_from_its_declared_set_pressure_is_said(tmp_path):
+    """``gauge_bar`` is a description, the logged pressure is used; but a file logged at
+    3 bar under an entry that says 1 bar (a file under another's entry) is said, and a
+    declaration within the regulator's hold (3 bar) is not."""
+    root = tmp_path / "rig"
+    shutil.copytree(SEALS, root)
+    text = (root / "records.yaml").read_text()
+    (root / "records.yaml").write_text(text.replace("NAPN_3bar.csv\n    seal: NAPN\n    bore: "
+                                                    "0.025\n    gauge_bar: 3",
+                                                    "NAPN_3bar.csv\n    seal: NAPN\n    bore: "
+                                                    "0.025\n    gauge_bar: 1"))
+    notes = {r.file: r.notes for r in read_records(root)}
+    assert any("gauge_bar 1 declared, but the pressure logged is 3.02 bar gauge" in n
+               for n in notes["NAPN_3bar.csv"])
+    assert not any("gauge_bar" in n for f in ("O-ring_3bar.csv", "PK_1bar.csv")
+                   for n in notes[f])
+
+
 def test_kernel_maxwell_slip_holds_a_force_below_breakaway_by_presliding():
     """At rest under a force below the breakaway, the kernel's Maxwell-slip elements deflect
     elastically or slip: f = |F_S| mean(min(y / delta_i, 1)), the friction balancing f."""
