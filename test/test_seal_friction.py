@@ -444,7 +444,8 @@ def test_what_the_records_cannot_fit_is_said_and_not_written_as_fitted(tmp_path,
     assert main(["friction", str(root), "--out", str(out), "--quiet"]) == 0
     printed = capsys.readouterr().out
     said = ["idle.csv: no moving sample in its first 0.5",
-            "entry direction (v < 0): no fitted sample moves that way"]
+            "entry direction (v < 0): no fitted sample moves that way",
+            "no record reverses its motion in its fitted part"]
     doc = json.loads((out / "friction.json").read_text())
     seal = doc["seals"]["O-ring"]
     report = html.unescape((out / "report.html").read_text())

@@ -710,6 +710,12 @@ class SealResult:
         out += [f"{direction} direction ({'v > 0' if direction == 'exit' else 'v < 0'}): no "
                 f"fitted sample moves that way, so its planes are not fitted; the starting "
                 f"parameters' are written" for direction in self.unfitted]
+        parts = without_reversal(self.preps)
+        if parts:
+            out.append(f"no record reverses its motion in "
+                       f"{' nor in '.join(f'its {part} part' for part in parts)}: the dynamic "
+                       f"forms ({', '.join(f for f in FORMS if f not in STATIC_FORMS)}), "
+                       f"whose pre-sliding shows after a reversal, are not selectable")
         return out
 
 
@@ -779,11 +785,15 @@ def select(judged: dict[str, dict[str, dict[str, float]]], preps: list[Prepared]
     one fitted the dynamic forms' parameters are not identified, and without one judged their
     scores measure nothing they add (two records cut to their first 5 s, one stroke each
     fitted: LuGre had been selected at 71 % held-out NRMSE)."""
-    dynamic = (any(reverses(p, p.train) for p in preps)
-               and any(reverses(p, p.test) for p in preps))
-    forms = FORMS if dynamic else STATIC_FORMS
+    forms = FORMS if not without_reversal(preps) else STATIC_FORMS
     return min(forms, key=lambda form: float(np.median(
         [s["nrmse"] for s in judged[form].values()])))
+
+
+def without_reversal(preps: list[Prepared]) -> list[str]:
+    """The parts (``fitted``, ``judged``) in which no record of a seal reverses its motion."""
+    return [part for part, mask in (("fitted", "train"), ("judged", "test"))
+            if not any(reverses(p, getattr(p, mask)) for p in preps)]
 
 
 def reverses(prep: Prepared, samples: np.ndarray | None = None) -> bool:

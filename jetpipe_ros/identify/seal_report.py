@@ -222,7 +222,9 @@ def html_report(results: list[SealResult], doc: dict[str, Any],
         parts.append(f"<li>seal {html.escape(res.seal or '(unnamed)')}: {res.selected} "
                      f"selected, held-out NRMSE {min(nrmse):.2f}-{max(nrmse):.2f} % over "
                      f"{len(nrmse)} record(s)"
-                     + (f"; {html.escape(drift)}" if drift else "") + "</li>")
+                     + (f"; {html.escape(drift)}" if drift else "")
+                     + "".join(f"<br><b>not used:</b> {html.escape(w)}"
+                               for w in res.warnings(doc["split"])) + "</li>")
     parts.append("</ul>")
     for res in results:
         name = res.seal or "seal"
@@ -237,7 +239,8 @@ def html_report(results: list[SealResult], doc: dict[str, Any],
             parts.append(f"<tr><td>{html.escape(prep.record.name)}</td>{''.join(cells)}</tr>")
         parts.append("</table><p>NRMSE / R^2 within direction, held-out moving samples.</p>")
         parts.append(_parameter_table(res.seal_fits[res.selected],
-                                      list(res.per_record[res.selected].values())))
+                                      list(res.per_record[res.selected].values()),
+                                      res.unfitted))
         parts.append(png_img(loop_figure(res, res.preps), dpi=80))
         if any(drifts[p.record.name] for p in res.preps):
             parts.append(_drift_table(res.preps, drifts))
@@ -247,12 +250,14 @@ def html_report(results: list[SealResult], doc: dict[str, Any],
     return "".join(parts)
 
 
-def _parameter_table(fit: FormFit, own: Sequence[FormFit] = ()) -> str:
+def _parameter_table(fit: FormFit, own: Sequence[FormFit] = (),
+                     unfitted: Sequence[str] = ()) -> str:
     """The selected fit's parameters as a table with units, per direction where they are, a
     value its range's bound set marked so; with ``own`` (each record's own fit of the form,
     two or more), below each parameter that does not follow the pressure the range of its
-    values over them: how consistent the seal is from record to record. The bore profile in a
-    line below."""
+    values over them: how consistent the seal is from record to record. A direction in
+    ``unfitted`` shows no values: its planes were not fitted. The bore profile in a line
+    below."""
     bounds = parameter_bounds(fit.form)
 
     def shown(name: str) -> str:
@@ -278,7 +283,8 @@ def _parameter_table(fit: FormFit, own: Sequence[FormFit] = ()) -> str:
     for quantity, (words, unit, _) in _SHOWN.items():
         per = [f"{d}.{quantity}" for d in DIRECTIONS]
         if all(name in fit.values for name in per):
-            cells = "".join(f"<td>{shown(name)}</td>" for name in per)
+            cells = "".join("<td><i>not fitted</i></td>" if name.split(".")[0] in unfitted
+                            else f"<td>{shown(name)}</td>" for name in per)
         elif quantity in fit.values:
             cells = f"<td colspan='2'>{shown(quantity)}</td>"
         else:
