@@ -160,3 +160,26 @@ def test_identification_plan_recovers_the_friction_planes(identified, phase):
             assert got == pytest.approx(want, rel=rel, abs=absolute), (q, t.name)
     example = next(t for t in identified.friction.tests if t.name == "friction_1_6p93bar")
     assert example.values["viscous"] == pytest.approx(3440.0, rel=0.02)
+
+
+def test_identification_plan_lets_the_time_base_be_checked(tmp_path):
+    """The plan's closed loop is what tells where a logger put the measurements: its records
+    logged a row early (the self-check's ``shifted`` logger) are read so before identifying,
+    and logged by the contract nothing is said; without the closed loop nothing could tell."""
+    from jetpipe_ros.plant.logger import log
+    from jetpipe_ros.workflows.identify_command import read_conventions
+
+    plan = load_campaign(PLAN)
+    assert [e.name for e in plan.experiments if e.kind == "closed_loop"] == [
+        "closed_loop_triangle"]
+    part = plan.select(["charge_0p29V", "closed_loop_triangle", "square_0p6V_0p1122Hz"])
+    root = run_campaign_offline(NOISY, part, tmp_path / "aligned", seed=11)
+    _, said = read_conventions(read_dataset(root), ModelParams())
+    assert said == []
+    log("shifted", root, 3)
+    _, said = read_conventions(read_dataset(root), ModelParams())
+    assert len(said) == 1 and "the logger wrote each measurement 1 row(s) early" in said[0]
+    open_loop = plan.select(["charge_0p29V", "square_0p6V_0p1122Hz"])
+    root = run_campaign_offline(NOISY, open_loop, tmp_path / "open", seed=11)
+    _, said = read_conventions(read_dataset(root), ModelParams())
+    assert said and said[0].startswith("time base: not checked")
