@@ -21,6 +21,12 @@ together at the end: both or, on an error, neither.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the command's imports wait until it runs: the CLI starts fast
+    from jetpipe_ros.dataset import Dataset
+    from jetpipe_ros.model import ModelParams
+
 
 def _run(args) -> int:
     from jetpipe_ros import fileio
@@ -67,9 +73,10 @@ def _run(args) -> int:
     return 0
 
 
-def read_conventions(data, base):
+def read_conventions(data: Dataset, base: ModelParams) -> tuple[Dataset, list[str]]:
     """``data`` read as the data contract counts its signs and pairs its rows, and what was
-    said of it: the signs against the model ``base`` (:func:`signs.measure`), the time base by
+    said of it: the signs against the model ``base``
+    (:func:`jetpipe_ros.diagnosis.signs.measure`), the time base by
     the controller's reaction. Records too short for the diagnosis' comparison (its minimum of
     training data) are returned as logged, nothing said: the procedures judge them alone."""
     from jetpipe_ros.dataset import DatasetError
