@@ -155,9 +155,9 @@ def read_records(root: str | Path) -> list[RigRecord]:
             held = float(np.median(p[valid]))
             if abs(held - set_pressure) > max(SET_TOLERANCE_PA,
                                               SET_TOLERANCE * (set_pressure - P_ATM)):
-                notes.append(f"{entry['file']}: gauge_bar {gauge:g} declared, but the pressure logged is "
-                             f"{(held - P_ATM) * 1e-5:.2f} bar gauge (median): the logged one "
-                             f"is used; check the file and its entry")
+                notes.append(f"{entry['file']}: gauge_bar {gauge:g} declared, but the pressure "
+                             f"logged is {(held - P_ATM) * 1e-5:.2f} bar gauge (median): the "
+                             f"logged one is used; check the file and its entry")
         records.append(RigRecord(
             name=Path(entry["file"]).stem, file=entry["file"], seal=str(entry.get("seal", "")),
             area=area, role=role, set_pressure=set_pressure, t=t, x=x, p=p, force=force,

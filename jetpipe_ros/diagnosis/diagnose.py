@@ -45,7 +45,7 @@ from jetpipe_ros.diagnosis.placement import place, subsystem_gaps
 from jetpipe_ros.diagnosis.separation import (adopt, separating_experiment, stand_ins,
                                               words)
 from jetpipe_ros.diagnosis.prediction import HORIZON, persistence, without_unknown_start
-from jetpipe_ros.diagnosis.signs import Signs, rewritten, measure as measure_signs
+from jetpipe_ros.diagnosis.signs import Signs, read as read_signs
 from jetpipe_ros.diagnosis.score import (METRIC, Score, difference_gap, effective_samples,
                                          predict_all, score, window_errors)
 from jetpipe_ros.diagnosis.verdict import (NOISE_GAP, Ranked, Settled, Verdict, decide,
@@ -427,12 +427,9 @@ def diagnose_dataset(dataset: Dataset, nominal: ModelParams | None = None,
     # the fitting processes need (measured: 2x slower per fit with them).
     with threadpool_limits(1):
         progress("signs: which way each signal counts against the command")
-        signs = measure_signs(dataset, prepared, nominal)
+        signs, dataset, prepared = read_signs(dataset, prepared, nominal)
         progress(f"signs: {signs.words}")
         said = [f"signs: {signs.words}"] if signs.changes else []
-        if signs.changes:
-            dataset = rewritten(dataset, signs.changes)
-            prepared = prepare(dataset)
         progress("time base: where the measurements sit against the command")
         aligned = align(prepared, nominal)
         progress(f"time base: {aligned.words}")

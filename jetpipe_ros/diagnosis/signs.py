@@ -179,6 +179,18 @@ def rewritten(dataset: Dataset, changes: Sequence[str]) -> Dataset:
     return dataclasses.replace(dataset, experiments=experiments)
 
 
+def read(dataset: Dataset, prepared: Prepared, nominal: ModelParams
+         ) -> tuple[Signs, Dataset, Prepared]:
+    """``dataset``'s signs measured against ``nominal`` (:func:`measure`; ``prepared``: it as
+    logged), and the dataset and its preparation as the reading takes them (as logged when it
+    changes nothing)."""
+    signs = measure(dataset, prepared, nominal)
+    if signs.changes:
+        dataset = rewritten(dataset, signs.changes)
+        prepared = prepare(dataset)
+    return signs, dataset, prepared
+
+
 def _reading(dataset: Dataset, changes: tuple[str, ...], nominal: ModelParams) -> Reading:
     r, se = correlations(prepare(rewritten(dataset, changes)), nominal)
     return Reading(changes, r, se)

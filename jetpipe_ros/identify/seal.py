@@ -636,7 +636,7 @@ def measured_presliding(prep: Prepared, fraction: float = 0.9) -> np.ndarray:
     (a true reversal swings by about their sum), are skipped."""
     x, f, v, ok = prep.record.x, prep.friction, prep.v, prep.record.valid
     out = []
-    turns = np.flatnonzero(np.sign(v[1:]) != np.sign(v[:-1])) + 1
+    turns = reversals(v)
     for k, end in zip(turns, [*turns[1:], x.size]):
         sign = 1.0 if v[k] > 0 else -1.0
         u = sign * (x - x[k])

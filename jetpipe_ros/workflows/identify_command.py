@@ -82,19 +82,14 @@ def read_conventions(data: Dataset, base: ModelParams) -> tuple[Dataset, list[st
     from jetpipe_ros.dataset import DatasetError
     from jetpipe_ros.diagnosis.alignment import controller_reaction
     from jetpipe_ros.diagnosis.data import prepare, shifted
-    from jetpipe_ros.diagnosis.signs import measure, rewritten
+    from jetpipe_ros.diagnosis.signs import read
 
     try:
         prepared = prepare(data)
     except DatasetError:
         return data, []
-    said = []
-    signs = measure(data, prepared, base)
-    if signs.changes or signs.against:
-        said.append(f"signs: {signs.words}")
-    if signs.changes:
-        data = rewritten(data, signs.changes)
-        prepared = prepare(data)
+    signs, data, prepared = read(data, prepared, base)
+    said = [f"signs: {signs.words}"] if signs.changes or signs.against else []
     rows, z = controller_reaction(prepared)
     ms = prepared.dt * 1e3
     if rows is None:
