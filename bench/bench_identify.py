@@ -1,6 +1,8 @@
 """Identification speed: wall time of each procedure of ``jetpipe identify`` on the paper's
 full campaign simulated with noise (7 charge/discharge tests of 6.2 s, a 6 s sweep, 12.5 s of
-ramps, 26 + 11 friction tests). Prints a markdown table; compare rows, not machines.
+ramps, 26 + 11 friction tests). Prints a markdown table; compare rows, not machines. Measured
+(2 cores, shared): friction 0.38 s with Newton's law alone, 23 s with the output-error fit that
+replays each test (identify() 13.6 -> 34.8 s).
 Usage: .venv/bin/python bench/bench_identify.py
 """
 
@@ -43,7 +45,7 @@ def main() -> None:
         _, t_all = _timed(lambda: identify(ds))
     rows = [("simulate the campaign (synthetic.paper_dataset)", t_gen),
             ("read the dataset", t_read), ("flow map", t_flow), ("valve dynamics", t_valve),
-            ("hysteresis", t_hyst), ("friction (37 tests)", t_fric),
+            ("hysteresis", t_hyst), ("friction (37 tests, each replayed from 10 starts)", t_fric),
             ("identify() total, with replays", t_all)]
     print("| step | wall [s] |\n|---|---|")
     for label, seconds in rows:

@@ -1,5 +1,7 @@
 """Friction: the paper's worked example (Sec. 4.2.3), the fitted regions and Eq. 15."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -67,10 +69,33 @@ def test_planes_of_tests_with_one_side_at_atmosphere():
     tests = [FrictionTest(name=f"t{p1}", phase="exit", p1_bar=p1, p2_bar=1.0,
                           values={"breakaway": 5.0 + 2.0 * p1, "stribeck_velocity": 0.01,
                                   "viscous": 100.0, "coulomb": 4.0 + 1.5 * p1},
-                          v=np.zeros(0), force=np.zeros(0), rms_error=0.0)
+                          v=np.zeros(0), force=np.zeros(0), rms_error=0.0, rms_position=0.0)
              for p1 in (2.0, 4.0, 6.0)]
     planes, errors = fit_planes(tests)
     assert planes["coulomb"][1] == pytest.approx(planes["coulomb"][2])
     assert planes["coulomb"][1] == pytest.approx(1.5)  # d/dp1 at p2 fixed: 1.5 N/bar
     assert max(errors.values()) < 1e-9
     assert planes["viscous"] == pytest.approx([100.0, 0.0, 0.0], abs=1e-9)
+
+
+def test_planes_weigh_each_test_by_its_standard_error():
+    """A low-pressure test that cannot place its Stribeck velocity (standard error 200 % of
+    a value 60 % off) neither moves the plane nor counts in its error; the determined tests'
+    planes come out exact."""
+    from jetpipe_ros.identify.friction import FrictionTest, fit_planes
+
+    def test(p1, p2, v_s, se):
+        return FrictionTest(name=f"t{p1}_{p2}", phase="exit", p1_bar=p1, p2_bar=p2,
+                            values={"breakaway": 5.0 + 2.0 * p1, "stribeck_velocity": v_s,
+                                    "viscous": 100.0 + 10.0 * p2, "coulomb": 4.0 + p1},
+                            v=np.zeros(0), force=np.zeros(0), rms_error=0.0, rms_position=0.0,
+                            errors={"breakaway": 0.1, "stribeck_velocity": se,
+                                    "viscous": 1.0, "coulomb": 0.1})
+
+    exact = [test(p1, p2, 0.01 + 0.001 * p1, 1e-4) for p1, p2 in ((4, 1), (6, 1), (8, 3), (9, 5))]
+    weak = test(1.8, 1.0, 0.4 * (0.01 + 0.0018), 0.02)
+    planes, errors = fit_planes(exact + [weak])
+    assert planes["stribeck_velocity"] == pytest.approx([0.01, 0.001, 0.0], abs=2e-5)
+    assert errors["stribeck_velocity"] < 0.01  # judged on the four that determine it
+    unweighted, _ = fit_planes([dataclasses.replace(t, errors={}) for t in exact + [weak]])
+    assert abs(unweighted["stribeck_velocity"][0] - 0.01) > 1e-3  # the weak test pulls it

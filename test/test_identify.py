@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import shutil
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy import optimize
@@ -132,6 +134,24 @@ def test_valve_fit_converges_from_far_starts(exact_sweep, start):
     assert np.max(np.abs(np.degrees(np.angle(ratio)))) < 3.2
 
 
+def test_valve_at_200_hz_as_at_1_khz(exact_sweep, tmp_path):
+    """The noise-free sweep logged at 200 Hz gives the valve the 1 kHz record gives: the
+    model's flow is seen as the record's (integrated to the sample instants, differentiated
+    with the same five-sample window) on a 1 ms grid, where the valve's response above
+    100 Hz aliases as in the samples. Compared with the flow at the sample instants, the
+    window's loss (15 % at 50 Hz) and the aliasing read as valve dynamics: delay 1.23 ms,
+    K_b 0.083, the lead-lag at its bound, 55 % off at 70 Hz."""
+    slow = of_kind(recordings(syn.record(TRUTH, [syn.valve_sweep()], tmp_path / "d",
+                                         sample_time=0.005)), "sweep")
+    at_200 = TRUTH.with_values(identify_valve(slow, START, FLOW_COEFFICIENTS).values)
+    at_1k = TRUTH.with_values(identify_valve(exact_sweep, START, FLOW_COEFFICIENTS).values)
+    assert at_200["valve.delay"] == pytest.approx(at_1k["valve.delay"], abs=5e-5)
+    f = np.linspace(1.0, 70.0, 300)
+    ratio = response(at_200, f) / response(at_1k, f)
+    assert np.max(np.abs(np.abs(ratio) - 1.0)) < 0.01
+    assert np.max(np.abs(np.degrees(np.angle(ratio)))) < 1.0
+
+
 def test_valve_recovers_resonance_delay_and_lead_lag(result):
     """With the paper's noise and the flow map identified from the same data (its error feeds
     the inversion). Seeds 0-11 from this start: resonance 49.80-50.25 Hz, peak gain +0.8 to
@@ -177,38 +197,59 @@ def exact_friction(tmp_path_factory):
 
 @pytest.mark.parametrize("phase", ["entry", "exit"])
 def test_friction_planes_match_the_papers_without_noise(exact_friction, phase):
-    """Eq. 20-27 at the test pressures, within the procedure's own bias (zero-phase
-    derivatives of a 1 kHz record: forces 2.4 %, Stribeck velocity 5.6 %, Coulomb 8 %, at
-    most 0.7 N): forces within 3 % or 1 N, Stribeck velocity 7 %, viscous 0.2 %."""
-    tol = {"breakaway": (0.03, 1.0), "stribeck_velocity": (0.07, 0.0), "viscous": (0.002, 0.0),
-           "coulomb": (0.10, 1.0)}
+    """Eq. 20-27 at the test pressures. The output-error fit replays each test through the
+    model that recorded it, so without noise nothing but the optimiser's tolerance is left:
+    every plane within 1e-4 (6e-6 measured). Its start, the fit of Eq. 18 to Newton's law
+    on the differentiated position, is biased by the derivative's smoothing: forces 2.4 %,
+    Stribeck velocity 5.6 %, Coulomb 8 %, which this bound would have failed."""
     errors = _plane_errors(exact_friction.params, exact_friction.friction.tests, phase)
-    for q, (rel, absolute) in tol.items():
-        assert errors[q][0] < rel or errors[q][1] < absolute, (q, errors[q])
-    assert max(exact_friction.friction.max_relative_error[phase].values()) < 0.1
+    for q in QUANTITIES:
+        assert errors[q][0] < 1e-4, (q, errors[q])
+    assert max(exact_friction.friction.max_relative_error[phase].values()) < 1e-4
 
 
 @pytest.mark.parametrize("phase", ["entry", "exit"])
 def test_friction_planes_with_noise(result, phase):
-    """With the paper's noise the per-test breakaway and Stribeck estimates scatter by several
-    newtons and 20-50 % (e.g. 27.3 +- 3.6 N against 23.5 N at (10.115, 8.89) bar over 20
-    seeds; planes up to 11 N off over seeds 0-11); the viscous planes stay within 0.4 % and the
-    Coulomb planes within 2.1 N over seeds 0-11 (forces and Stribeck velocity: see the
-    noise-free test)."""
+    """With the paper's noise (15 um on the position), over seeds 0-11 of this dataset the
+    planes at the test pressures stay within 1.9 N (breakaway), 8.2 % (Stribeck velocity),
+    0.05 % (viscous) and 0.27 N (Coulomb) of Eq. 20-27; bounds about 1.5 times those. The
+    fit of Eq. 18 to Newton's law alone, before the output-error fit, left breakaway planes up
+    to 11 N off, Coulomb 2.1 N and viscous 0.4 %."""
     errors = _plane_errors(result.params, result.friction.tests, phase)
-    assert errors["viscous"][0] < 0.01
-    assert errors["coulomb"][1] < 2.5
+    assert errors["breakaway"][1] < 3.0
+    assert errors["stribeck_velocity"][0] < 0.12
+    assert errors["viscous"][0] < 0.002
+    assert errors["coulomb"][1] < 0.5
+
+
+def test_friction_planes_at_200_hz(tmp_path):
+    """The same tests logged at 200 Hz (five samples in the derivative's window, the load
+    ramping 5 N a sample) give the planes within what the noise leaves there: over seeds 0-11
+    2.9 N (breakaway), 4 mm/s (Stribeck velocity), 0.09 % (viscous), 0.77 N (Coulomb); bounds
+    about 1.5 times those. Newton's law on the differentiated position gave breakaway 10-13 %
+    (10-12 N) off and, with the load read at the sample's start rather than about t_k,
+    Coulomb 7.5 % (4 N)."""
+    ds = syn.record(NOISY, [syn.friction_test(p1, p2) for p1, p2 in (*ENTRY, *EXIT)],
+                    tmp_path / "d", sample_time=0.005)
+    ident = identify(ds, base=START, procedures=["friction"], required=["friction"])
+    for phase in ("entry", "exit"):
+        errors = _plane_errors(ident.params, ident.friction.tests, phase)
+        assert errors["breakaway"][1] < 4.5, (phase, errors)
+        assert errors["stribeck_velocity"][1] < 0.006, (phase, errors)
+        assert errors["viscous"][0] < 0.002, (phase, errors)
+        assert errors["coulomb"][1] < 1.2, (phase, errors)
 
 
 def test_friction_worked_example(result):
     """Sec. 4.2.3 at (1, 6.93) bar: F_S -95 N, v_s -0.015 m/s, F_v 3440 N s/m, F_C -56 N; one
-    noisy test (seeds 0-11: F_S -92.6 to -100.9 N, v_s -0.0129 to -0.0161 m/s, F_v within
-    0.6 %, F_C -55.9 to -58.1 N)."""
+    noisy test (seeds 0-11: F_S -94.4 to -95.8 N, v_s -0.0147 to -0.0152 m/s, F_v within
+    0.05 %, F_C -55.6 to -55.9 N; Newton's law alone gave F_S -92.6 to -100.9 N, v_s -0.0129
+    to -0.0161 m/s)."""
     test = next(t for t in result.friction.tests if t.name == "friction_1_6p93bar")
-    assert test.values["breakaway"] == pytest.approx(-95.0, rel=0.07)
-    assert test.values["stribeck_velocity"] == pytest.approx(-0.015, rel=0.15)
-    assert test.values["viscous"] == pytest.approx(3440.0, rel=0.01)
-    assert test.values["coulomb"] == pytest.approx(-56.0, rel=0.05)
+    assert test.values["breakaway"] == pytest.approx(-95.0, rel=0.03)
+    assert test.values["stribeck_velocity"] == pytest.approx(-0.015, rel=0.06)
+    assert test.values["viscous"] == pytest.approx(3440.0, rel=0.002)
+    assert test.values["coulomb"] == pytest.approx(-56.0, rel=0.01)
 
 
 def test_round_trip_through_the_cli(dataset, tmp_path, capsys):

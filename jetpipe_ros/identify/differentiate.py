@@ -44,12 +44,17 @@ def derivative(x: np.ndarray, dt: float, window: float, order: int = 1) -> np.nd
 
 
 def derivative_gain(frequency: np.ndarray, dt: float, window: float) -> np.ndarray:
-    """Gain of :func:`derivative` (order 1) relative to an ideal differentiator at
-    ``frequency`` [Hz]: 1 in the pass band, falling where the window smooths."""
+    """Response of :func:`derivative` (order 1) relative to an ideal differentiator at
+    ``frequency`` [Hz], for a signal sampled every ``dt`` [s]: 1 in the pass band, falling where
+    the window smooths, negative where its response turns over (real: the filter has zero
+    phase). The derivative of a record holding a component at f is this times the true one,
+    which a fit can apply to its model instead of reading the loss as physics."""
+    f = np.asarray(frequency, dtype=float)
     n = window_samples(window, dt)
     taps = signal.savgol_coeffs(n, POLYORDER, deriv=1, delta=dt, use="conv")
-    _, h = signal.freqz(taps, worN=2.0 * np.pi * np.asarray(frequency) * dt)
-    omega = 2.0 * np.pi * np.asarray(frequency)
-    # Centre the symmetric FIR (zero phase) before comparing with j omega.
+    omega = 2.0 * np.pi * f
+    _, h = signal.freqz(taps, worN=omega * dt)
+    # Centre the antisymmetric FIR (zero phase): what remains is j omega times a real gain.
     centred = h * np.exp(1j * omega * dt * (n - 1) / 2)
-    return np.abs(centred) / omega
+    return np.where(omega > 0.0, (centred / (1j * np.where(omega > 0.0, omega, 1.0))).real,
+                    1.0)  # exact on polynomials: unit gain at DC

@@ -14,11 +14,22 @@ paper reads F_S at the breakaway instant, v_s where the Stribeck dip ends, and F
 line through the data outside the Stribeck zone (Sec. 4.2.3). Here those readings only start a
 joint nonlinear least-squares fit of Eq. 18 (the model's own
 :func:`~jetpipe_ros.model.friction.sliding_friction`, scipy.optimize.least_squares) to every
-sliding sample, which uses the whole record instead of three points. Entry phase (p2 > p1,
-v < 0) and exit phase (p1 > p2, v > 0) are fitted apart, each parameter is fitted over the test
-pressures with a plane c0 + c1 p1 + c2 p2 (p in bar, Eq. 20-27; regressors from the model's
-:func:`~jetpipe_ros.model.friction.plane_basis`), and the planes' largest relative error over
-the tests is reported (the paper: under 5 %).
+sliding sample, which uses the whole record instead of three points.
+
+That fit reads the velocity from the differentiated position, whose noise (about 1.3 mm/s at
+1 kHz with the paper's 15 um sensor, 2.8 mm/s at 200 Hz, where the window holds five samples)
+is a fifth of the Stribeck velocity: errors in the regressor bias the Stribeck part (breakaway
+and Stribeck velocity 10-25 % off at 200 Hz, up to 30 % on single tests at 1 kHz). Its values
+therefore only start an output-error fit (:func:`refine`): the test is replayed on the
+regulated rig through the model itself, with those four values, and they are fitted to the
+measured position up to the far end stop, where the only noise is the position sensor's. That
+leaves each test at the sensor's noise and the planes within a few % at 200 Hz as at 1 kHz.
+
+Entry phase (p2 > p1, v < 0) and exit phase (p1 > p2, v > 0) are fitted apart, each parameter is
+fitted over the test pressures, each test weighed by its values' standard errors, with a plane c0 +
+c1 p1 + c2 p2 (p in bar, Eq. 20-27; regressors from the model's
+:func:`~jetpipe_ros.model.friction.plane_basis`), and the planes' largest relative error over the
+tests is reported (the paper: under 5 %).
 
 A test gives parameters only if it slides over a wide enough velocity range to separate the
 Stribeck, Coulomb and viscous parts (released progressively, not in one jump); a phase needs
@@ -38,6 +49,7 @@ from scipy import optimize, signal
 from jetpipe_ros.dataset import DatasetError
 from jetpipe_ros.identify.differentiate import derivative, window_samples
 from jetpipe_ros.identify.experiments import Recording
+from jetpipe_ros.model import ModelParams, simulate
 from jetpipe_ros.model.friction import plane_basis, sliding_friction
 from jetpipe_ros.model.params import FRICTION_PLANES
 
@@ -52,6 +64,16 @@ END_MARGIN = 1e-3
 #: A test must slide over this ratio of highest to lowest speed, with this many samples.
 MIN_SPEED_RATIO = 5.0
 MIN_SAMPLES = 30
+#: The piston's start is read over this span [s]: 20 samples at 1 kHz, four at 200 Hz (a test
+#: may break away within 40 ms: 20 samples at 200 Hz had it moving).
+START_SPAN = 0.02
+#: Stribeck velocities [m/s] the output-error fit also starts from (besides the Newton fit's):
+#: its cost has local minima in v_s where the few samples of a slow record's Stribeck zone
+#: leave the Newton fit far off; they span the paper's planes (0.004-0.03 m/s).
+STRIBECK_STARTS = (0.005, 0.01, 0.02, 0.04)
+#: A test determines a quantity when its standard error is within this fraction of its value:
+#: the paper's 5 % tolerance on the planes, which a less certain test could not show.
+DETERMINED = 0.05
 
 
 @dataclass
@@ -66,7 +88,10 @@ class FrictionTest:
     values: dict[str, float]  #: quantity -> value [N, m/s, N s/m, N]
     v: np.ndarray  #: sliding velocities [m/s]
     force: np.ndarray  #: friction force of Eq. 19 at those samples [N]
-    rms_error: float  #: RMS of Eq. 18 fit - Eq. 19 force [N]
+    rms_error: float  #: RMS of Eq. 18 with ``values`` - Eq. 19 force [N]
+    rms_position: float  #: RMS of the rig's replay with ``values`` - measured position [m]
+    #: quantity -> standard error of its value (the output-error fit's covariance), its unit
+    errors: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass
@@ -89,12 +114,16 @@ def friction_force(rec: Recording, params: Mapping[str, Any]
     a = derivative(exp.y, dt, WINDOW, order=2)
     p1 = signal.savgol_filter(exp.p1, n, 3, mode="interp")
     p2 = signal.savgol_filter(exp.p2, n, 3, mode="interp")
-    load = exp.f_load if exp.f_load is not None else np.full(exp.t.size, rec.entry.load_force)
+    if exp.f_load is not None:  # an input like u: f_load[k] acts over [t_k, t_k+1), so the
+        # load about t_k, where the derivatives are centred, is the mean of the two held there
+        load = 0.5 * (exp.f_load + np.r_[exp.f_load[:1], exp.f_load[:-1]])
+    else:
+        load = np.full(exp.t.size, rec.entry.load_force)
     force = params["chamber.piston_area"] * (p1 - p2) - load - params["mechanics.mass"] * a
     # Up to the first arrival at the far end stop, less half a window of smeared impact.
     direction = 1.0 if np.mean(exp.p1) > np.mean(exp.p2) else -1.0
-    arrived = np.flatnonzero(direction * exp.y > 0.5 * params["mechanics.stroke"] - END_MARGIN)
-    stop = arrived[0] - n // 2 if arrived.size else exp.t.size
+    stop = arrival(rec, params)
+    stop = stop - n // 2 if stop < exp.t.size else stop
     moving = direction * v[:stop] > MIN_SPEED
     # The piston slides without stopping from breakaway on (the released load only grows), so
     # the sliding samples are the last unbroken run; earlier runs are noise on a stuck piston.
@@ -105,7 +134,68 @@ def friction_force(rec: Recording, params: Mapping[str, Any]
     return v, force, sliding
 
 
-def fit_test(rec: Recording, params: Mapping[str, Any]) -> FrictionTest:
+def arrival(rec: Recording, params: Mapping[str, Any]) -> int:
+    """Index of the first sample of a friction test within END_MARGIN of the end stop it
+    slides towards (the record's length if it never gets there)."""
+    exp = rec.experiment
+    direction = 1.0 if np.mean(exp.p1) > np.mean(exp.p2) else -1.0
+    arrived = np.flatnonzero(direction * exp.y > 0.5 * params["mechanics.stroke"] - END_MARGIN)
+    return int(arrived[0]) if arrived.size else exp.t.size
+
+
+def rig(rec: Recording, params: ModelParams) -> ModelParams:
+    """``params`` as the regulated rig of friction test ``rec`` (the paper's Fig. 15): the
+    chamber pressures held at their measured means, the piston at its measured start (the
+    median over the record's first START_SPAN), at the record's sample time."""
+    exp = rec.experiment
+    start = exp.y[:max(1, round(START_SPAN / exp.dt))]
+    return params.at_sample_time(exp.dt).with_values({
+        "chamber.regulated": True,
+        "chamber.initial_pressure_1": float(np.mean(exp.p1)),
+        "chamber.initial_pressure_2": float(np.mean(exp.p2)),
+        "mechanics.initial_position": float(np.median(start))})
+
+
+def refine(rec: Recording, phase: str, start: np.ndarray, breakaway: float,
+           params: ModelParams) -> tuple[np.ndarray, np.ndarray, float]:
+    """Output-error fit of one test's Eq. 18 magnitudes (F_S [N], v_s [m/s], F_v [N s/m],
+    F_C [N], all positive) from ``start``: the rig replayed through the model with constant
+    planes of ``phase`` set to them, fitted to the measured position from the start of the
+    record to the far end stop. The fit also starts from ``breakaway`` [N] (the applied force
+    when the piston began to slide) for F_S and from each of STRIBECK_STARTS for v_s, and keeps
+    the best: a start whose F_S the piston never reaches, or whose v_s lies in another basin,
+    ends where the cost is flat. Returns the fitted magnitudes, their standard errors (the
+    residual's variance times the inverse Gauss-Newton matrix: the residual is the position
+    sensor's white noise once the fit is right) and the position RMS [m]."""
+    exp = rec.experiment
+    test_rig = rig(rec, params)
+    s = 1.0 if phase == "exit" else -1.0
+    load = exp.f_load if exp.f_load is not None else rec.entry.load_force
+    stop = arrival(rec, params)
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        signed = (s * x[0], s * x[1], x[2], s * x[3])
+        trial = test_rig.with_values({f"friction.{phase}.{q}": [v, 0.0, 0.0]
+                                      for q, v in zip(QUANTITIES, signed)})
+        return simulate(trial, exp.u, load).y[:stop] - exp.y[:stop]
+
+    lower, upper = np.array([1.0, 1e-4, 0.0, 1.0]), np.array([1e4, 0.5, 1e5, 1e4])
+    x0 = np.clip(start, lower, upper)
+    fits = [optimize.least_squares(residual, np.clip(np.r_[f_s, v_s, x0[2:]], lower, upper),
+                                   bounds=(lower, upper), diff_step=1e-4,
+                                   x_scale=np.maximum(x0, [1.0, 1e-3, 10.0, 1.0]))
+            for f_s in (x0[0], breakaway) for v_s in (x0[1], *STRIBECK_STARTS)]
+    fit = min(fits, key=lambda f: f.cost)
+    variance = float(np.sum(fit.fun ** 2)) / max(fit.fun.size - x0.size, 1)
+    # diag((J^T J)^-1) from J's singular values; a direction the record does not see (a
+    # singular value ~0) makes the parameters along it unknown, not known exactly.
+    _, sv, vt = np.linalg.svd(fit.jac, full_matrices=False)
+    sv = np.maximum(sv, 1e-9 * sv[0])
+    se = np.sqrt(variance * np.sum((vt / sv[:, None]) ** 2, axis=0))
+    return fit.x, se, float(np.sqrt(np.mean(fit.fun ** 2)))
+
+
+def fit_test(rec: Recording, params: ModelParams) -> FrictionTest:
     """Fit Eq. 18 to one friction test; raise DatasetError if it cannot separate the terms."""
     exp = rec.experiment
     p1_bar, p2_bar = float(np.mean(exp.p1)) * 1e-5, float(np.mean(exp.p2)) * 1e-5
@@ -133,18 +223,33 @@ def fit_test(rec: Recording, params: Mapping[str, Any]) -> FrictionTest:
     # A direction whose friction fits "the wrong way" (a negative line) starts out of bounds.
     fit = optimize.least_squares(residual, np.clip(start, lower, upper), bounds=(lower, upper),
                                  x_scale="jac")
-    f_s, v_s, f_v, f_c = fit.x
-    values = dict(zip(QUANTITIES, (s * f_s, s * v_s, f_v, s * f_c)))
+    first = int(np.argmax(sliding))  # the paper's reading of F_S: the force at breakaway
+    load = exp.f_load[first] if exp.f_load is not None else rec.entry.load_force
+    applied = s * (params["chamber.piston_area"] * (np.mean(exp.p1) - np.mean(exp.p2)) - load)
+    x, se, rms_position = refine(rec, phase, fit.x, applied, params)
+    values = dict(zip(QUANTITIES, (s * x[0], s * x[1], x[2], s * x[3])))
     return FrictionTest(name=rec.name, phase=phase, p1_bar=p1_bar, p2_bar=p2_bar,
                         values={k: float(x) for k, x in values.items()}, v=v[sliding],
-                        force=force[sliding], rms_error=float(np.sqrt(np.mean(fit.fun ** 2))))
+                        force=force[sliding],
+                        rms_error=float(np.sqrt(np.mean(residual(x) ** 2))),
+                        rms_position=rms_position,
+                        errors={k: float(e) for k, e in zip(QUANTITIES, se)})
+
+
+def undetermined(test: FrictionTest, quantity: str) -> bool:
+    """Whether ``test`` leaves ``quantity`` too uncertain to judge a plane by: a standard
+    error over DETERMINED of the value (a low-pressure test whose breakaway barely exceeds
+    its Coulomb level cannot place the Stribeck velocity)."""
+    return test.errors.get(quantity, 0.0) > DETERMINED * abs(test.values[quantity])
 
 
 def fit_planes(tests: list[FrictionTest]) -> tuple[dict[str, list[float]], dict[str, float]]:
     """Planes c0 + c1 p1 + c2 p2 of each quantity over ``tests`` and their largest relative
-    error. Tests whose pressures lie on a line (one side at atmosphere, say) fix only the
-    plane's slope along the mean pressure (p1 + p2) / 2: it is split equally, c1 = c2; tests
-    at one pressure give a constant."""
+    error over the tests that determine it (:func:`undetermined`; NaN if none does). Each test
+    weighs by the inverse of its value's standard error, where the tests give one. Tests whose
+    pressures lie on a line (one side at atmosphere, say) fix only the plane's slope along the
+    mean pressure (p1 + p2) / 2: it is split equally, c1 = c2; tests at one pressure give a
+    constant."""
     p1 = np.array([t.p1_bar for t in tests])
     p2 = np.array([t.p2_bar for t in tests])
     basis = np.column_stack(plane_basis(p1, p2))
@@ -155,17 +260,21 @@ def fit_planes(tests: list[FrictionTest]) -> tuple[dict[str, list[float]], dict[
     planes, errors = {}, {}
     for q in QUANTITIES:
         values = np.array([t.values[q] for t in tests])
-        coef, *_ = np.linalg.lstsq(reduced, values, rcond=None)
+        se = np.array([t.errors.get(q, 1.0) for t in tests])
+        w = 1.0 / np.maximum(se, 1e-9 * np.abs(values) + 1e-12)
+        coef, *_ = np.linalg.lstsq(reduced * w[:, None], values * w, rcond=None)
         if reduced.shape[1] == 2:
             coef = np.array([coef[0], 0.5 * coef[1], 0.5 * coef[1]])
         elif reduced.shape[1] == 1:
             coef = np.array([coef[0], 0.0, 0.0])
         planes[q] = [float(c) for c in coef]
-        errors[q] = float(np.max(np.abs(basis @ coef - values) / np.abs(values)))
+        judged = np.array([not undetermined(t, q) for t in tests])
+        errors[q] = (float(np.max(np.abs(basis @ coef - values)[judged] / np.abs(values[judged])))
+                     if judged.any() else float("nan"))
     return planes, errors
 
 
-def identify_friction(recs: list[Recording], params: Mapping[str, Any]) -> FrictionResult:
+def identify_friction(recs: list[Recording], params: ModelParams) -> FrictionResult:
     """Friction planes of both phases from the friction tests ``recs``.
 
     Tests that cannot separate the terms, and phases with fewer than three usable tests, are

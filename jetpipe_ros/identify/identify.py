@@ -21,7 +21,7 @@ from jetpipe_ros.identify import experiments as kinds
 from jetpipe_ros.identify.experiments import Recording, of_kind, recordings
 from jetpipe_ros.identify.flow_map import (FlowMapResult, FlowTableResult, identify_flow_map,
                                            identify_flow_table)
-from jetpipe_ros.identify.friction import FrictionResult, identify_friction
+from jetpipe_ros.identify.friction import FrictionResult, identify_friction, rig
 from jetpipe_ros.identify.hysteresis import HysteresisResult, identify_hysteresis
 from jetpipe_ros.identify.valve import ValveResult, identify_valve
 from jetpipe_ros.model import ModelParams, simulate
@@ -142,13 +142,8 @@ def check(rec: Recording, params: dict[str, ModelParams]) -> Replay:
     sims, rms_y, rms_p = {}, {}, {}
     for label, p in params.items():
         if rec.kind == kinds.FRICTION:
-            rig = p.at_sample_time(exp.dt).with_values({
-                "chamber.regulated": True,
-                "chamber.initial_pressure_1": float(np.mean(exp.p1)),
-                "chamber.initial_pressure_2": float(np.mean(exp.p2)),
-                "mechanics.initial_position": float(np.median(exp.y[:20]))})
             load = exp.f_load if exp.f_load is not None else rec.entry.load_force
-            trace = simulate(rig, exp.u, load)
+            trace = simulate(rig(rec, p), exp.u, load)
         else:
             trace = replay(p, exp, locked=rec.entry.locked)
         sims[label] = trace.y

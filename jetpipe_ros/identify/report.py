@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from jetpipe_ros.figures import png_img, pyplot
-from jetpipe_ros.identify.friction import QUANTITIES, paper_planes
+from jetpipe_ros.identify.friction import DETERMINED, QUANTITIES, paper_planes, undetermined
 from jetpipe_ros.identify.identify import Identification
 from jetpipe_ros.identify.valve import peak, response
 from jetpipe_ros.model.actuator import flow_map
@@ -26,9 +26,11 @@ PAPER = {"flow_max_error": 0.0005, "resonance_hz": 49.0, "hysteresis_v": 0.25,
 
 def summary(ident: Identification) -> str:
     """Plain-text summary: per procedure, what was used, what was found, the paper's figure."""
+    rates = sorted({round(1.0 / r.experiment.dt) for r in ident.recordings})
     lines = ["jetpipe identify: " + ", ".join(
         f"{k}: {sum(r.kind == k for r in ident.recordings)}"
-        for k in ("charge", "sweep", "ramp", "friction", "validation")) + " experiment(s)"]
+        for k in ("charge", "sweep", "ramp", "friction", "validation")) + " experiment(s), "
+        f"logged at {' and '.join(f'{hz:g}' for hz in rates)} Hz"]
     lines += [f"- {note}" for note in ident.notes]
     for name, why in ident.skipped.items():
         lines.append(f"- {name}: SKIPPED, starting values kept: {why}")
@@ -69,11 +71,19 @@ def summary(ident: Identification) -> str:
     if ident.friction is not None:
         fr_res = ident.friction
         for phase, errors in fr_res.max_relative_error.items():
-            n = sum(t.phase == phase for t in fr_res.tests)
-            errs = ", ".join(f"{q} {100 * e:.1f} %" for q, e in errors.items())
+            tests = [t for t in fr_res.tests if t.phase == phase]
+            errs = ", ".join(f"{q} {100 * e:.1f} %" if np.isfinite(e) else f"{q} not judged"
+                             for q, e in errors.items())
             eq = "20-23" if phase == "entry" else "24-27"
-            lines.append(f"- friction {phase} planes (Eq. {eq}) from {n} test(s): plane max "
-                         f"relative error {errs} (paper: < 5 %)")
+            lines.append(f"- friction {phase} planes (Eq. {eq}) from {len(tests)} test(s): plane "
+                         f"max relative error {errs} (paper: < 5 %)")
+            weak = {q: [t.name for t in tests if undetermined(t, q)] for q in QUANTITIES}
+            if any(weak.values()):
+                lines.append(f"  note: not judged where a test cannot place the value within "
+                             f"{100 * DETERMINED:.0f} % (its standard error; the plane weighs "
+                             f"each test by it): " + "; ".join(
+                                 f"{q} in {', '.join(names)}" for q, names in weak.items()
+                                 if names))
         for note in fr_res.skipped:
             lines.append(f"  note: {note}")
     for rp in ident.replays:
@@ -168,17 +178,22 @@ def figures(ident: Identification) -> list[tuple[str, str]]:
                 if not tests or phase not in fr.planes:
                     continue
                 meas = np.array([t.values[q] for t in tests])
+                # A test's standard error, capped at its value: one that cannot place it
+                # at all would otherwise stretch the axis over nothing.
+                se = np.minimum([t.errors.get(q, 0.0) for t in tests], np.abs(meas))
                 for label, c, col in (("identified plane", fr.planes[phase][q], "C0"),
                                       ("paper plane", paper_planes(phase)[q], "C3")):
                     pred = np.array([plane(np.asarray(c), t.p1_bar, t.p2_bar)
                                      for t in tests])
-                    ax.plot(meas, pred, mark, ms=4, mfc="none" if col == "C3" else col,
-                            color=col, label=f"{phase}, {label}")
+                    ax.errorbar(meas, pred, xerr=se if col == "C0" else None, fmt=mark, ms=4,
+                                mfc="none" if col == "C3" else col, color=col, elinewidth=0.8,
+                                label=f"{phase}, {label}")
             lim = ax.get_xlim()
             ax.plot(lim, lim, "k:", lw=0.8)
             ax.set(xlabel=f"per-test {q} [{FRICTION_UNITS[q]}]", ylabel="plane value")
         axes[0].legend(fontsize=6)
-        fig.suptitle("Friction planes (Eq. 20-27) against the per-test values")
+        fig.suptitle("Friction planes (Eq. 20-27) against the per-test values (bars: each "
+                     "test's standard error)")
         out.append(("Friction (Sec. 4.2)", png_img(fig)))
     shown = [rp for rp in ident.replays if rp.kind == "validation"][:2]
     fric = [rp for rp in ident.replays if rp.kind == "friction"][:1]

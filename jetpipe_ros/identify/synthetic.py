@@ -124,8 +124,11 @@ def paper_dataset(root: str | Path, params: ModelParams,
     return run_campaign_offline(params, plan, root, overwrite=overwrite)
 
 
-def record(params: ModelParams, experiments: Sequence[Experiment], root: str | Path) -> Dataset:
+def record(params: ModelParams, experiments: Sequence[Experiment], root: str | Path,
+           sample_time: float = 0.001) -> Dataset:
     """Run ``experiments`` (plan entries, e.g. from the functions above) offline with
-    ``params`` and read back the dataset written to ``root``."""
-    plan = parse_campaign({"experiments": list(experiments)}, "synthetic.record")
+    ``params``, logged every ``sample_time`` [s], and read back the dataset written to
+    ``root``."""
+    plan = parse_campaign({"sample_time": sample_time, "experiments": list(experiments)},
+                          "synthetic.record")
     return read_dataset(run_campaign_offline(params, plan, root), required=COMPLETE)
