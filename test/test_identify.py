@@ -310,6 +310,24 @@ def test_a_signal_counted_the_other_way_is_read_as_the_contract_counts(dataset, 
         assert got[key] == pytest.approx(result.params[key], rel=1e-9, abs=1e-12), key
 
 
+def _valve_as_logged(root: Path, logger: str, name: str, seed: int
+                     ) -> tuple[dict[str, float], dict[str, str]]:
+    """The dataset ``root`` and a copy beside it, ``name``, rewritten by the self-check's
+    ``logger``, each identified by the CLI (the valve only): their valve delays [s] and
+    parameter files' text (the summary on top), by directory name."""
+    from jetpipe_ros.plant.logger import log
+
+    logged = root.parent / name
+    shutil.copytree(root, logged)
+    log(logger, logged, seed)
+    delays, said = {}, {}
+    for r in (root, logged):
+        out = root.parent / f"{r.name}.yaml"
+        assert main(["identify", str(r), "--out", str(out), "--procedures", "valve"]) == 0
+        delays[r.name], said[r.name] = load_params(out)["valve.delay"], out.read_text()
+    return delays, said
+
+
 def test_a_logger_a_row_early_is_found_by_the_controller_and_moved_back(tmp_path):
     """The default campaign (closed-loop records among its experiments) logged a row early, as
     the self-check's ``shifted`` logger writes it (written apart from the reader): identified as
@@ -318,17 +336,9 @@ def test_a_logger_a_row_early_is_found_by_the_controller_and_moved_back(tmp_path
     0.1 ms. The aligned record says nothing of its time base; records without a closed loop
     (the paper's experiments) say that it was not checked."""
     from jetpipe_ros.campaign import campaign_dataset
-    from jetpipe_ros.plant.logger import log
 
     aligned = campaign_dataset(NOISY, tmp_path / "aligned", seed=3)
-    early = tmp_path / "early"
-    shutil.copytree(aligned, early)
-    log("shifted", early, 4)
-    delays, said = {}, {}
-    for root in (aligned, early):
-        out = tmp_path / f"{root.name}.yaml"
-        assert main(["identify", str(root), "--out", str(out), "--procedures", "valve"]) == 0
-        delays[root.name], said[root.name] = load_params(out)["valve.delay"], out.read_text()
+    delays, said = _valve_as_logged(aligned, "shifted", "early", 4)
     assert "time base" not in said["aligned"]
     assert "the logger wrote each measurement 1 row(s) early" in said["early"]
     assert delays["early"] == pytest.approx(delays["aligned"], abs=1e-4)
@@ -341,17 +351,8 @@ def test_a_lossy_logger_is_said_and_identifies_as_the_clean_record(tmp_path):
     (the parameter file's header) says what the reader did and that the procedures read the
     filled rows as measured, and the valve's delay is the clean record's within 0.05 ms (its
     scatter over seeds is 0.08 ms)."""
-    from jetpipe_ros.plant.logger import log
-
     clean = syn.record(NOISY, [syn.valve_sweep()], tmp_path / "clean").root
-    lossy = tmp_path / "lossy"
-    shutil.copytree(clean, lossy)
-    log("lossy", lossy, 5)
-    delays, said = {}, {}
-    for root in (clean, lossy):
-        out = tmp_path / f"{root.name}.yaml"
-        assert main(["identify", str(root), "--out", str(out), "--procedures", "valve"]) == 0
-        delays[root.name], said[root.name] = load_params(out)["valve.delay"], out.read_text()
+    delays, said = _valve_as_logged(clean, "lossy", "lossy", 5)
     assert "rows missing" not in said["clean"] and "filled" not in said["clean"]
     assert "rows missing" in said["lossy"] and "snapped to the grid" in said["lossy"]
     assert "read the rows filled over a logger's gaps as measured" in said["lossy"]
