@@ -8,7 +8,7 @@ Before any procedure runs the records' conventions are read as the diagnosis rea
 - the time base, by the controller's reaction alone
   (:func:`jetpipe_ros.diagnosis.alignment.controller_reaction`): a logger that writes each
   measurement a row early would otherwise take a row off the valve's delay (the default
-  campaign logged so: 0.84 ms identified where the aligned record gives 1.83). The
+  campaign logged so: 1.19 ms identified where the aligned record gives 2.19). The
   diagnosis' other evidence, the model's own delay, is not used: identification is what
   measures that delay. Without a closed-loop record nothing tells, and the summary says so.
 
