@@ -143,13 +143,20 @@ def test_valve_at_200_hz_as_at_1_khz(exact_sweep, tmp_path):
     K_b 0.083, the lead-lag at its bound, 55 % off at 70 Hz."""
     slow = of_kind(recordings(syn.record(TRUTH, [syn.valve_sweep()], tmp_path / "d",
                                          sample_time=0.005)), "sweep")
-    at_200 = TRUTH.with_values(identify_valve(slow, START, FLOW_COEFFICIENTS).values)
+    found = identify_valve(slow, START, FLOW_COEFFICIENTS)
+    at_200 = TRUTH.with_values(found.values)
     at_1k = TRUTH.with_values(identify_valve(exact_sweep, START, FLOW_COEFFICIENTS).values)
     assert at_200["valve.delay"] == pytest.approx(at_1k["valve.delay"], abs=5e-5)
     f = np.linspace(1.0, 70.0, 300)
     ratio = response(at_200, f) / response(at_1k, f)
     assert np.max(np.abs(np.abs(ratio) - 1.0)) < 0.01
     assert np.max(np.abs(np.degrees(np.angle(ratio)))) < 1.0
+    # The report's like-for-like line: the measured 5-70 Hz bands lie within 2.3 % of the
+    # identified chain as the record shows it, up to 58 % from the chain itself.
+    band = (found.frequency >= 5.0) & (found.frequency <= 70.0)
+    shown = np.abs(found.measured / found.seen - 1.0)[band]
+    chain = np.abs(found.measured / response(at_200, found.frequency, 0.005) - 1.0)[band]
+    assert shown.max() < 0.04 and chain.max() > 0.4
 
 
 def test_valve_recovers_resonance_delay_and_lead_lag(result):
@@ -260,8 +267,10 @@ def test_round_trip_through_the_cli(dataset, tmp_path, capsys):
     start.write_text(START.to_ros_yaml())
     out = tmp_path / "params.yaml"
     assert main(["identify", str(dataset.root), "--out", str(out), "--params", str(start)]) == 0
-    printed = capsys.readouterr().out
+    printed, progress = capsys.readouterr()
     assert "paper: max about 0.0005 kg/s" in printed and "(paper: < 5 %)" in printed
+    assert "identifying the valve dynamics" in progress  # on stderr, each with its time
+    assert f"friction: test {len(ENTRY) + len(EXIT)} of {len(ENTRY) + len(EXIT)}" in progress
     assert "time base: not checked: no closed-loop record" in printed
     assert (tmp_path / "params.report.html").read_text().count("<img") >= 5
     exp = next(x for e, x in dataset if e.role == "holdout")
@@ -323,7 +332,8 @@ def _valve_as_logged(root: Path, logger: str, name: str, seed: int
     delays, said = {}, {}
     for r in (root, logged):
         out = root.parent / f"{r.name}.yaml"
-        assert main(["identify", str(r), "--out", str(out), "--procedures", "valve"]) == 0
+        assert main(["identify", str(r), "--out", str(out), "--procedures", "valve",
+                     "--quiet"]) == 0
         delays[r.name], said[r.name] = load_params(out)["valve.delay"], out.read_text()
     return delays, said
 
@@ -345,7 +355,7 @@ def test_a_logger_a_row_early_is_found_by_the_controller_and_moved_back(tmp_path
     assert delays["aligned"] == pytest.approx(TRUTH["valve.delay"], abs=5e-4)
 
 
-def test_a_lossy_logger_is_said_and_identifies_as_the_clean_record(tmp_path):
+def test_a_lossy_logger_is_said_and_identifies_as_the_clean_record(tmp_path, capsys):
     """The valve sweep with 1 % of its rows lost and its stamps jittered by +-0.3 samples, as
     the self-check's ``lossy`` logger writes it (written apart from the reader): the summary
     (the parameter file's header) says what the reader did and that the procedures read the
@@ -357,6 +367,7 @@ def test_a_lossy_logger_is_said_and_identifies_as_the_clean_record(tmp_path):
     assert "rows missing" in said["lossy"] and "snapped to the grid" in said["lossy"]
     assert "read the rows filled over a logger's gaps as measured" in said["lossy"]
     assert delays["lossy"] == pytest.approx(delays["clean"], abs=5e-5)
+    assert capsys.readouterr().err == ""  # --quiet: no progress lines
 
 
 def test_no_usable_experiment_names_every_procedure(tmp_path, capsys):

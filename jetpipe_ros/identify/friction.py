@@ -39,7 +39,7 @@ slope is along the mean pressure only: :func:`fit_planes`).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -274,8 +274,11 @@ def fit_planes(tests: list[FrictionTest]) -> tuple[dict[str, list[float]], dict[
     return planes, errors
 
 
-def identify_friction(recs: list[Recording], params: ModelParams) -> FrictionResult:
-    """Friction planes of both phases from the friction tests ``recs``.
+def identify_friction(recs: list[Recording], params: ModelParams,
+                      progress: Callable[[str], None] = lambda message: None
+                      ) -> FrictionResult:
+    """Friction planes of both phases from the friction tests ``recs``, each test's end said
+    through ``progress`` (its output-error fit takes about half a second).
 
     Tests that cannot separate the terms, and phases with fewer than three usable tests, are
     listed in ``skipped``; DatasetError if no phase remains.
@@ -284,11 +287,12 @@ def identify_friction(recs: list[Recording], params: ModelParams) -> FrictionRes
         raise DatasetError("friction: no friction test (piston: free, regulated: true, the "
                            "released load in column f_load) in the dataset")
     tests, skipped = [], []
-    for rec in recs:
+    for i, rec in enumerate(recs, 1):
         try:
             tests.append(fit_test(rec, params))
         except DatasetError as exc:
             skipped.append(str(exc))
+        progress(f"friction: test {i} of {len(recs)} ({rec.name}) fitted")
     planes, errors = {}, {}
     for phase in PHASES:
         mine = [t for t in tests if t.phase == phase]

@@ -10,7 +10,7 @@ DatasetError; so is a run where nothing could be identified.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -28,6 +28,10 @@ from jetpipe_ros.model import ModelParams, simulate
 from jetpipe_ros.replay import replay
 
 PROCEDURES = ("flow_map", "flow_table", "valve", "hysteresis", "friction")
+#: Each procedure in the words of a progress line.
+WHAT = {"flow_map": "flow map (Eq. 8)", "flow_table": "flow map's correction table",
+        "valve": "valve dynamics", "hysteresis": "valve's hysteresis",
+        "friction": "friction planes"}
 
 
 @dataclass
@@ -66,9 +70,10 @@ class Identification:
 
 
 def identify(dataset: Dataset, base: ModelParams | None = None,
-             procedures: Iterable[str] = PROCEDURES, required: Iterable[str] = ()
-             ) -> Identification:
-    """Run ``procedures`` on ``dataset`` starting from ``base`` (default: the nominal model).
+             procedures: Iterable[str] = PROCEDURES, required: Iterable[str] = (),
+             progress: Callable[[str], None] = lambda message: None) -> Identification:
+    """Run ``procedures`` on ``dataset`` starting from ``base`` (default: the nominal model),
+    each procedure's start (and each friction test's end) said through ``progress``.
 
     Procedures in ``required`` that cannot run raise DatasetError; the others are skipped with
     the reason in ``skipped``. DatasetError too when no procedure ran.
@@ -85,6 +90,7 @@ def identify(dataset: Dataset, base: ModelParams | None = None,
     def attempt(name: str, run):  # type: ignore[no-untyped-def]
         if name not in wanted:
             return None
+        progress(f"identifying the {WHAT[name]}")
         try:
             return run()
         except DatasetError as exc:
@@ -117,7 +123,7 @@ def identify(dataset: Dataset, base: ModelParams | None = None,
             changes["effects.valve_hysteresis.half_width"] = out.hysteresis.half_width
             changes["effects.valve_hysteresis.elements"] = 1
     out.friction = attempt("friction", lambda: identify_friction(of_kind(recs, kinds.FRICTION),
-                                                                 base))
+                                                                 base, progress))
     if out.friction is not None:
         for phase, planes in out.friction.planes.items():
             changes.update({f"friction.{phase}.{q}": c for q, c in planes.items()})
@@ -126,6 +132,7 @@ def identify(dataset: Dataset, base: ModelParams | None = None,
             f"{k}: {v}" for k, v in out.skipped.items()) if out.skipped else
             "nothing identified: no procedure selected")
     out.params = base.with_values(changes)
+    progress("replaying the held-out runs and the friction tests")
     out.replays = [check(r, {"identified": out.params, "starting": base}) for r in recs
                    if r.kind in (kinds.VALIDATION, kinds.FRICTION)]
     return out

@@ -69,6 +69,9 @@ class ValveResult:
     values: dict[str, float]  #: FITTED parameter -> identified value (SI)
     frequency: np.ndarray  #: band centres of the measured response [Hz]
     measured: np.ndarray  #: measured u -> u_eq response per band (complex, V/V)
+    #: the identified chain's response as the record shows it in the same bands (the flows it
+    #: gives differentiated and sampled as the measured ones): what ``measured`` is fitted to
+    seen: np.ndarray
     experiments: list[str]  #: sweeps used
     rms_error: float  #: RMS of the fit's residual, as chamber pressure [Pa] (noise: ~sensor)
     top_frequency: float  #: highest frequency the sweeps reached [Hz]
@@ -108,13 +111,17 @@ def chain_output(params: Mapping[str, Any], u: np.ndarray, dt: float) -> np.ndar
 
 
 def equivalent_voltage(rec: Recording, params: Mapping[str, Any],
-                       coefficients: Sequence[float]) -> np.ndarray:
-    """u_eq(t) [V] of a locked test: the flow map inverted at each chamber's measured flow,
-    averaged over the two chambers."""
+                       coefficients: Sequence[float],
+                       flows: Sequence[np.ndarray] | None = None) -> np.ndarray:
+    """u_eq(t) [V] of a locked test: the flow map inverted at each chamber's flow, averaged
+    over the two chambers. ``flows`` [kg/s] (chamber 1's, chamber 2's): the measured ones
+    (Eq. 7 on the differentiated pressures) by default."""
     exp = rec.experiment
-    c1, c2 = chamber_capacities(params, float(np.mean(exp.y)))
-    u1 = invert(coefficients, c1 * derivative(exp.p1, exp.dt, WINDOW), exp.p1 * 1e-5, exp.u)
-    u2 = -invert(coefficients, c2 * derivative(exp.p2, exp.dt, WINDOW), exp.p2 * 1e-5, -exp.u)
+    if flows is None:
+        c1, c2 = chamber_capacities(params, float(np.mean(exp.y)))
+        flows = (c1 * derivative(exp.p1, exp.dt, WINDOW), c2 * derivative(exp.p2, exp.dt, WINDOW))
+    u1 = invert(coefficients, flows[0], exp.p1 * 1e-5, exp.u)
+    u2 = -invert(coefficients, flows[1], exp.p2 * 1e-5, -exp.u)
     return 0.5 * (u1 + u2)
 
 
@@ -210,12 +217,16 @@ def identify_valve(recs: list[Recording], params: ModelParams,
         kb, tau, wz, wp = theta
         return params.with_values(dict(zip(FITTED, (np.exp(kb), tau, np.exp(wz), np.exp(wp)))))
 
+    def seen_flows(q: ModelParams) -> list[np.ndarray]:
+        """Each chamber's flow [kg/s] with the valve chain of ``q``, as the record shows it."""
+        return [seen_flow(mass_flow(coefficients, np.clip(sign * chain_output(q, u, dt / fine),
+                                                          U_EQ_MIN, U_EQ_MAX), p_bar), fine, dt)
+                for u, sign, p_bar, _, _ in chambers]
+
     def residual(theta: np.ndarray) -> np.ndarray:
-        q = model(theta)
         out = []
-        for u, sign, p_bar, flow, w in chambers:
-            u_eq = np.clip(sign * chain_output(q, u, dt / fine), U_EQ_MIN, U_EQ_MAX)
-            err = seen_flow(mass_flow(coefficients, u_eq, p_bar), fine, dt) - flow
+        for (_, _, _, flow, w), model_flow in zip(chambers, seen_flows(model(theta))):
+            err = model_flow - flow
             err[:skip] = 0.0
             spec = fft.rfft(err) * w
             out += [spec.real, spec.imag]
@@ -227,11 +238,15 @@ def identify_valve(recs: list[Recording], params: ModelParams,
     upper = [np.log(5.0), 0.02, np.log(1e4), np.log(1e4)]
     fit = optimize.least_squares(residual, start, bounds=(lower, upper), x_scale="jac")
     best = model(fit.x)
+    flows = seen_flows(best)
+    seen = np.concatenate([band_response(r.experiment.u, equivalent_voltage(
+        r, params, coefficients, flows[2 * i:2 * i + 2]), dt)[1] for i, r in enumerate(recs)])
     keep = f_all <= top
     order = np.argsort(f_all[keep])
     return ValveResult(
         values={k: float(best[k]) for k in FITTED},
         frequency=f_all[keep][order], measured=np.concatenate([b[1] for b in bands])[keep][order],
+        seen=seen[keep][order],
         experiments=[r.name for r in recs],
         rms_error=float(np.sqrt(2.0 * np.mean(fit.fun ** 2))),
         top_frequency=top,

@@ -36,6 +36,7 @@ def _run(args) -> int:
     from jetpipe_ros.identify.report import html_report, summary
     from jetpipe_ros.model import ModelParams, load_params
     from jetpipe_ros.model.limits import Limits
+    from jetpipe_ros.progress import Progress
 
     out = fileio.output_file(args.out, "--out")
     report = fileio.output_file(args.report if args.report is not None
@@ -52,6 +53,8 @@ def _run(args) -> int:
         required = chosen
     else:
         chosen, required = list(PROCEDURES), []
+    progress = Progress(args.quiet)
+    progress(f"reading {args.dataset}")
     data = read_dataset(args.dataset, limits=Limits.from_params(base))
     for entry, exp in data:
         missing = [c for c in COMPLETE if getattr(exp, c) is None]
@@ -63,8 +66,9 @@ def _run(args) -> int:
                 f"one chamber alone charges only from its rest pressure up, and the flow map "
                 f"below it would be extrapolated); with fewer sensors 'jetpipe diagnose' judges "
                 f"the model on what there is (docs/real_logs.md)")
+    progress("reading the records' signs and time base")
     data, said = read_conventions(data, base)
-    ident = identify(data, base, chosen, required)
+    ident = identify(data, base, chosen, required, progress)
     ident.notes.extend(grouped_notes(data.notes) + said)
     if any(exp.valid is not None and not exp.valid.all() for _, exp in data):
         ident.notes.append("the procedures read the rows filled over a logger's gaps as "
@@ -125,6 +129,7 @@ def add_command(subparsers) -> None:
     cmd.add_argument("--out", required=True, help="parameter YAML to write (ROS params layout)")
     cmd.add_argument("--params", help="starting parameters (YAML); default: the nominal model")
     cmd.add_argument("--report", help="HTML report path; default: OUT with .report.html")
+    cmd.add_argument("--quiet", action="store_true", help="no progress lines (on stderr)")
     cmd.add_argument("--procedures", help="comma-separated subset of flow_map (Eq. 8), "
                                           "flow_table (its correction table), valve, "
                                           "hysteresis, friction; each listed one must run "
