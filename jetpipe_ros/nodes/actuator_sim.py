@@ -115,6 +115,8 @@ class ActuatorSim(Node):
         super().__init__(NODE_NAME, **kwargs)
         params, opts = self._load_parameters(kwargs.get("cli_args"))
         self.opts = opts
+        self.get_logger().info("loading the model's kernel (compiled once after an install, "
+                               "about a minute on 2 cores; then loaded from numba's cache)")
         Actuator(params).step(0.0)  # compile (or load) the kernel before the clock starts
         self.actuator = Actuator(params)
         self._dt = self.actuator.constants.dt
