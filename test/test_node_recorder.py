@@ -84,6 +84,11 @@ def campaign_bag(module_launch, tmp_path_factory):
     return bag, rec, plan
 
 
+#: Rows an export may leave out at a real-time recording's two ends for want of a partner
+#: message [samples]: 10 ms, a few times the executor's lag seen under load.
+ENDS = 10
+
+
 def _joint_stamps(bag) -> np.ndarray:
     with Reader(bag) as reader:
         conns = [c for c in reader.connections if c.topic.endswith("/joint_states")]
@@ -287,7 +292,11 @@ def test_record_mode_keeps_a_real_time_stream(launch, tmp_path):
     ((entry, exp),) = list(read_dataset(export_bag(bag, tmp_path / "data", progress=said.append)))
     assert "no campaign events" in said[0] and entry.name == "rt" and entry.role is None
     rows = np.count_nonzero(exp.valid) if exp.valid is not None else exp.t.size
-    assert rows >= stamps.size - 2 - entry.extra["lost_samples"] and rows > 1000
+    # Rows at the ends lack a partner message: the command after the last sample is not in the
+    # bag, and at start-up and at SIGTERM the topics' streams begin and end a few samples apart
+    # (each topic's callbacks run when the executor reaches them: 4 rows on a busy 2-core
+    # machine where 2 had been allowed). A row missing inside the record is counted as lost.
+    assert rows >= stamps.size - ENDS - entry.extra["lost_samples"] and rows > 1000
     assert np.all(exp.u == 0.0) and np.allclose(np.diff(exp.t), 1e-3)
     assert exp.p1 is not None and exp.p2 is not None and np.all(np.isfinite(exp.y))
 
