@@ -159,6 +159,25 @@ def test_capture_keeps_the_latest_samples_and_writes_them_as_a_dataset(tmp_path)
     assert np.flatnonzero(~first.valid).tolist() == [100]
 
 
+def test_a_sample_never_received_leaves_the_row_before_it_without_a_command(tmp_path):
+    """A monitor that lost a whole sample (its command too) holds rows k-1 and k+1 side by side;
+    row k-1's command is the one received with sample k, so row k-1 has none: it is left out
+    with the lost one, never paired with sample k+1's command (which a one-row shift gave)."""
+    from jetpipe_ros.dataset import read_dataset
+    from jetpipe_ros.twin.capture import write_capture
+
+    rows = hardware(ModelParams(), 9.0)
+    received = np.delete(rows, 1200, axis=0)
+    write_capture(received, tmp_path / "ds")
+    ds = read_dataset(tmp_path / "ds")
+    assert ds.entries[0].extra["incomplete_rows"] == 1  # 8,999 received, 8,997 whole
+    first = ds.experiments[0]
+    assert np.flatnonzero(~first.valid).tolist() == [1199, 1200]
+    n, kept = first.t.size, first.valid
+    assert first.u[kept] == pytest.approx(rows[1:n + 1, 1][kept], rel=1e-8, abs=1e-12)
+    assert first.y[kept] == pytest.approx(rows[:n, 3][kept], rel=1e-8)
+
+
 def test_hardware_with_the_position_alone_is_followed_judged_and_captured(tmp_path):
     """A rig without pressure sensors: the twin simulates both chambers, judges the position
     alone, and flags a 20 Hz valve lag there from its second judgement on (ERROR, gaps

@@ -7,10 +7,11 @@ per experiment ``t,u,y,p1,p2,f_load`` and ``dataset.yaml``), cut into pieces wit
 diagnosis judges by: every third piece held out, as the diagnosis itself chooses when a dataset
 assigns none. A row of the dataset pairs the measurements at t_k with the command applied over
 the next sample, [t_k, t_k+1), so the received rows, which carry the command applied over the
-sample *ending* at their stamp, are shifted by one (the last one has no command yet and is left
-out); rows with a measurement missing are left out (the dataset reader fills such holes). A
-chamber pressure the hardware does not measure (``sensors``) is no column of the capture, as the
-dataset contract has it for a bench without that sensor.
+sample *ending* at their stamp, are shifted by one sample (the last one has no command yet and
+is left out, as is one whose next sample never came); rows with a measurement missing are left
+out (the dataset reader fills such holes). A chamber pressure the hardware does not measure
+(``sensors``) is no column of the capture, as the dataset contract has it for a bench without
+that sensor.
 """
 
 from __future__ import annotations
@@ -58,11 +59,16 @@ SENSORS = ("y", "p1", "p2")
 def dataset_rows(rows: np.ndarray, sensors: tuple[str, ...] = SENSORS) -> np.ndarray:
     """Received rows (:data:`COLUMNS`) as dataset rows: each measurement with the command and
     load applied over the next sample, the last row dropped, and the rows where the command,
-    the load or one of the ``sensors`` measured is not finite."""
+    the load or one of the ``sensors`` measured is not finite. A row whose next sample was not
+    received (the following row more than half a sample from one sample later) has no known
+    command: the next row's is that of a later sample, and it is left out too."""
     if rows.shape[0] < 2:
         return np.empty((0, len(COLUMNS)))
     out = rows[:-1].copy()
     out[:, 1:3] = rows[1:, 1:3]
+    step = np.diff(rows[:, 0])
+    dt = float(np.median(step))
+    out[np.abs(step - dt) > 0.5 * dt, 1:3] = np.nan
     needed = [COLUMNS.index(c) for c in ("t", "u", "f_load", *sensors)]
     return out[np.isfinite(out[:, needed]).all(axis=1)]
 
