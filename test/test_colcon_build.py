@@ -50,6 +50,7 @@ def workspace(tmp_path_factory) -> Path:
     return ws
 
 
+@pytest.mark.ros  # beside the test below, in the stage that talks ROS: one build and compile
 def test_executables_and_data_installed(workspace):
     prefix = workspace / "install" / "jetpipe_ros"
     for exe in ("actuator_sim", "controller", "id_recorder", "composed_campaign", "gap_monitor",
