@@ -11,6 +11,7 @@ from __future__ import annotations
 import bisect
 import csv
 import json
+import re
 
 import numpy as np
 import pytest
@@ -115,13 +116,14 @@ def test_effect_switched_on_is_flagged_captured_and_named(rig, ros_context):
             Parameter("effects.valve_lag.enabled", value=True)])
         assert probe.spin_until(future.done, 10.0)
         assert all(r.successful for r in future.result().results)
-        switched = int(_values(listener.latest("gap"))["horizons scored"])
+        # The stamp from which the lag acts, as the simulator says it.
+        switched_at = float(re.search(r"acting from the sample stamped ([0-9.]+) s", sim.wait_for(
+            "model parameters changed", 10.0)).group(1))
 
         def error():
             return _level(listener.latest("gap")) == DiagnosticStatus.ERROR[0]
         assert probe.spin_until(error, 30.0), listener.latest("gap").message
         flagged = _values(listener.latest("gap"))
-        assert int(flagged["horizons scored"]) - switched <= 3
         assert max(float(flagged[f"{s} gap [%]"]) for s in ("y", "p1", "p2")) > 2.0
 
         # The gap stays at ERROR: a capture, then its diagnosis in a separate process.
@@ -155,6 +157,16 @@ def test_effect_switched_on_is_flagged_captured_and_named(rig, ros_context):
         index = load_yaml(dataset / "dataset.yaml")["experiments"]
         assert [e["role"] for e in index][:3] == ["train", "train", "holdout"]
         origin = index[0]["stamp_origin_ns"]
+        # Flagged within three horizons of the switch, counted in the samples' own time (a
+        # status read when the switch was made may speak of samples a second old: the monitor
+        # falls behind on a loaded machine and catches up).
+        horizon = load_yaml("config/gap_monitor.yaml")["/**/gap_monitor"]["ros__parameters"][
+            "horizon"]
+        late = float(flagged["level since t [s]"]) - (switched_at - origin / 1e9)
+        assert 0.0 < late <= 3 * horizon, late
+        # The capture holds samples after the switch only: at ERROR for AUTO s of samples, the
+        # last CAPTURE s of them.
+        assert origin / 1e9 + index[0]["captured_from_s"] > switched_at
         rows = []
         for e in index:
             with open(dataset / e["file"]) as f:
@@ -180,9 +192,11 @@ def test_effect_switched_on_is_flagged_captured_and_named(rig, ros_context):
         lost = sum(int(counts[k]) for k in ("samples without command", "samples without a "
                                             "measurement", "samples filled (lost)"))
         assert len(set(recorded) - set(stamps)) <= lost, (len(recorded), len(stamps))
-        # and every sample the monitor received, a message short or not, is in its window.
-        assert index[0]["received_rows"] == int(CAPTURE * 1000)
-        assert len(stamps) == CAPTURE * 1000 - 1 - index[0]["incomplete_rows"]
+        # and every sample the monitor received in the window's CAPTURE s, a message short or
+        # not, is there (fewer where samples were lost on the way to it).
+        received = index[0]["received_rows"]
+        assert received <= int(CAPTURE * 1000) and stamps[-1] - stamps[0] < CAPTURE * 1e9
+        assert len(stamps) == received - 1 - index[0]["incomplete_rows"]
         applied = listener.messages["voltage_applied"]
         applied_stamps = sorted(applied)
         checked = 0
@@ -208,7 +222,9 @@ def test_effect_switched_on_is_flagged_captured_and_named(rig, ros_context):
         # one the monitor predicts 100 %: bench/bench_twin.py).
         predicted = [s for s in listener.messages["twin/joint_states"]
                      if stamps[0] <= s <= stamps[-1]]
-        assert predicted and set(predicted) <= set(stamps)
+        # (A sample the capture leaves out, a measurement short or its next sample lost, was
+        # predicted all the same.)
+        assert predicted and len(set(predicted) - set(stamps)) <= index[0]["incomplete_rows"]
 
         # A capture on request, without diagnosis: the samples held when the hardware died.
         params = AsyncParameterClient(probe.node, f"{NS}/gap_monitor")
@@ -222,7 +238,12 @@ def test_effect_switched_on_is_flagged_captured_and_named(rig, ros_context):
         assert answer.result().success, answer.result().message
         assert probe.spin_until(lambda: "dataset written" in listener.latest("capture").message,
                                 30.0)
-        assert f"({int(CAPTURE * 1000)} samples" in listener.latest("capture").message
+        # The last CAPTURE s of samples: all of them, bar what the monitor counts as lost.
+        held = int(re.search(r"\((\d+) samples", listener.latest("capture").message).group(1))
+        counts = _values(listener.latest("gap"))
+        lost = int(counts["samples filled (lost)"]) + int(counts["samples without command"]) \
+            + round(float(counts["paused [s]"]) * 1000)
+        assert CAPTURE * 1000 - lost <= held <= CAPTURE * 1000, (held, lost)
     finally:
         probe.close()
 

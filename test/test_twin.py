@@ -73,6 +73,23 @@ def test_effect_switched_on_mid_run_is_flagged_within_two_horizons():
     assert all(lv == Level.ERROR for lv, _, _ in levels[14].values())
 
 
+def test_the_level_says_since_which_sample_it_holds():
+    """The stamp of the last sample of the horizon whose judgement set the level: the end of
+    the first judged horizon (4.999 s, OK: five horizons scored) until a 20 Hz lag switched on at 10 s turns it to
+    ERROR at the end of a horizon after the switch, in the stream's own time."""
+    rows = hardware(ModelParams(), 14.0, switch=(10.0, LAG))
+    twin = Twin(ModelParams())
+    since = {}
+    for i in range(rows.shape[0]):
+        twin.feed(*rows[i])
+        if twin.level_since is not None:
+            since.setdefault(twin.level, twin.level_since)
+    assert since[Level.OK] == pytest.approx(4.999)
+    assert twin.level == Level.ERROR
+    assert min(abs(since[Level.ERROR] - t) for t in (10.999, 11.999)) < 1e-9
+    assert twin.level_held() == pytest.approx(13.999 - since[Level.ERROR])
+
+
 def test_the_augmented_model_matches_the_lagging_hardware():
     lagging = ModelParams().with_effect("valve_lag", corner_frequency=20.0)
     levels = _levels(Twin(lagging), hardware(lagging, 7.0))
@@ -157,6 +174,22 @@ def test_capture_keeps_the_latest_samples_and_writes_them_as_a_dataset(tmp_path)
     # 8,999 rows with a command, 8,998 of them whole; the reader fills the one left out.
     assert [exp.t.size for _, exp in ds] == [3000, 2999, 3000]
     assert np.flatnonzero(~first.valid).tolist() == [100]
+
+
+def test_a_capture_holds_the_last_seconds_of_a_stream_that_lost_samples():
+    """A monitor that lost every tenth sample holds 9,000 rows over 10 s: the capture of the
+    last 9 s keeps the 8,100 rows received in them, not rows from before (which, on a loaded
+    machine, had reached back to before an effect was switched on)."""
+    from jetpipe_ros.twin.capture import Recent
+
+    rows = hardware(ModelParams(), 12.0)
+    received = rows[np.arange(rows.shape[0]) % 10 != 5]
+    recent = Recent(9.0, 0.001)
+    for row in received:
+        recent.add(row)
+    kept = recent.snapshot()
+    assert np.array_equal(kept, received[received[:, 0] > 11.999 - 9.0 + 5e-4])
+    assert kept.shape[0] == 8100 and kept[0, 0] == pytest.approx(3.0)
 
 
 def test_a_sample_never_received_leaves_the_row_before_it_without_a_command(tmp_path):

@@ -263,7 +263,10 @@ class ActuatorSim(Node):
             for m in self._msg_p:
                 m.variance = self._variance
             shown = ", ".join(f"{k} = {v}" for k, v in model.items())
-            self.get_logger().info(f"model parameters changed (state kept): {shown}")
+            # The new model acts from the latest sample on: the first sample it moves is the
+            # next one published (stamps in the time the samples carry).
+            self.get_logger().info(f"model parameters changed, acting from the sample stamped "
+                                   f"{self._stamp_ns() / NS:.3f} s (state kept): {shown}")
         for p in params:
             if p.name in DYNAMIC:
                 self.opts[p.name] = p.value

@@ -15,7 +15,8 @@ floor: :mod:`jetpipe_ros.twin.gap`), what happened to the inputs (samples lost, 
 STALE when no sample came for ``stale_timeout`` s (a dead publisher), and the latest capture.
 
 Capture: the service ``~/capture`` (``std_srvs/Trigger``), or the gap at ERROR for
-``auto_capture_after`` s, writes the last ``capture_seconds`` of samples as a dataset under
+``auto_capture_after`` s of samples, writes the last ``capture_seconds`` of samples (both in the
+samples' own time) as a dataset under
 ``capture_dir`` and runs ``jetpipe diagnose`` on it in a separate process; both run in a thread
 from a copy of the samples, so the subscriptions never wait and the stream goes on into the
 twin and the next capture. The verdict (effect, subsystem, shrinkage, report) is published as
@@ -87,7 +88,7 @@ NODE_SPECS: dict[str, ParamSpec] = {s.name: s for s in [
     ParamSpec("capture_dir", "captures", "Directory the captures are written in, one folder "
               "each"),
     ParamSpec("auto_capture_after", 10.0, "Capture once the gap has stayed at ERROR this long "
-              "(0: never)", "s", 0.0, 86400.0),
+              "in the samples' time (0: never)", "s", 0.0, 86400.0),
     ParamSpec("diagnose", True, "Diagnose each capture (jetpipe diagnose, separate process)"),
     ParamSpec("diagnose_jobs", 1, "Worker processes of that diagnosis (1: one process)", "",
               1, 64),
@@ -144,7 +145,6 @@ class GapMonitor(Node):
         self._messages = dict.fromkeys(self._topics, 0)  # messages received per topic
         self._failures = 0  # messages whose handling failed (logged)
         self._last_wall: float | None = None  # monotonic time of the latest sample [s]
-        self._error_since: float | None = None  # monotonic time the gap became ERROR [s]
         self._captured_this_error = False
         self._capture_lock = threading.Lock()
         self._capture: dict[str, Any] = {"level": Level.OK, "message": "no capture yet"}
@@ -278,17 +278,16 @@ class GapMonitor(Node):
     def _report(self) -> None:
         """Auto capture when due; the statuses on /diagnostics."""
         now = time.monotonic()
-        level = self.twin.level
-        if level == Level.ERROR:
-            if self._error_since is None:
-                self._error_since = now
+        if self.twin.level == Level.ERROR:
+            # How long in the samples' own time: a monitor that falls behind on a loaded
+            # machine would otherwise count wall-clock seconds of fewer samples, and the capture
+            # of the latest samples reach back to before the gap went bad.
             after = self.opts["auto_capture_after"]
-            if after > 0.0 and not self._captured_this_error and now - self._error_since >= after:
+            if after > 0.0 and not self._captured_this_error and self.twin.level_held() >= after:
                 ok, message = self.capture(f"gap at ERROR for {after:g} s")
                 self._captured_this_error = ok
                 self.get_logger().warning(f"auto capture: {message}")
         else:
-            self._error_since = None
             self._captured_this_error = False
         array = DiagnosticArray()
         array.header.stamp = self.get_clock().now().to_msg()
@@ -318,6 +317,10 @@ class GapMonitor(Node):
         interval = twin.interval()
         if interval is not None:
             values["stamp interval [ms]"] = f"{interval * 1e3:.4g}"
+        if twin.level_since is not None:
+            values["level since t [s]"] = f"{twin.level_since:.3f}"
+        if twin.t_last is not None:
+            values["latest sample t [s]"] = f"{twin.t_last:.3f}"
         status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         silent = None if self._last_wall is None else now - self._last_wall
         waiting = self._silent_topics()

@@ -31,9 +31,12 @@ PIECE = 3.0
 
 
 class Recent:
-    """A ring of the latest ``seconds`` of samples at sample time ``dt`` [s]."""
+    """A ring of the latest ``seconds`` of samples at sample time ``dt`` [s]: as many rows as
+    that holds without a sample lost; with samples lost they span longer, and a snapshot keeps
+    the rows of the last ``seconds`` only."""
 
     def __init__(self, seconds: float, dt: float) -> None:
+        self.seconds, self.dt = seconds, dt
         self.size = max(int(round(seconds / dt)), 1)
         self._rows = np.empty((self.size, len(COLUMNS)))
         self._next = 0
@@ -46,10 +49,15 @@ class Recent:
         self.count = min(self.count + 1, self.size)
 
     def snapshot(self) -> np.ndarray:
-        """A copy of the rows held, oldest first, (count, 6)."""
+        """A copy of the rows of the last ``seconds`` (stamps within that of the latest's, to
+        half a sample), oldest first, (count, 6)."""
         if self.count < self.size:
-            return self._rows[:self.count].copy()
-        return np.concatenate([self._rows[self._next:], self._rows[:self._next]])
+            rows = self._rows[:self.count].copy()
+        else:
+            rows = np.concatenate([self._rows[self._next:], self._rows[:self._next]])
+        if rows.shape[0] == 0:
+            return rows
+        return rows[rows[:, 0] > rows[-1, 0] - self.seconds + 0.5 * self.dt]
 
 
 #: The signals a capture may hold, as the twin has them (position, chamber pressures).

@@ -139,6 +139,9 @@ class Twin:
         self._open: list[int] = []  # the unmeasured chambers' state indices
         self._compare_from = -math.inf  # stamp from which samples are compared [s]
         self.t_last: float | None = None  #: latest stamp used [s]
+        #: stamp of the last sample of the horizon whose judgement set the present level [s]
+        #: (None while nothing has been judged)
+        self.level_since: float | None = None
         self._h = _Horizon(period)
         self._meas = np.empty(3)
         self._sigmas: deque[np.ndarray] = deque(maxlen=self.gaps.history)
@@ -148,6 +151,13 @@ class Twin:
     def level(self) -> Level:
         """The worst level over the signals judged (OK before any)."""
         return max((g.level for g in self.judged), default=Level.OK)
+
+    def level_held(self) -> float:
+        """How long the present level has held [s], in the samples' time: from
+        :attr:`level_since` to the latest sample (0 before anything is judged)."""
+        if self.level_since is None or self.t_last is None:
+            return 0.0
+        return self.t_last - self.level_since
 
     def feed(self, t: np.ndarray | float, u: np.ndarray | float, f_load: np.ndarray | float,
              y: np.ndarray | float, p1: np.ndarray | float,
@@ -289,7 +299,10 @@ class Twin:
                                           int(ok.sum()), float(x[ok].sum()),
                                           float((x[ok] ** 2).sum()), 2.0 * noise_rel[j]))
         self.counters.horizons += 1
+        before = self.level if self.judged else None
         self.judged = self.gaps.judge()
+        if self.judged and self.level != before:
+            self.level_since = float(h.t[n - 1])
 
     def _noisy_copies(self, h: _Horizon,
                       n: int) -> tuple[list[tuple[np.ndarray, np.ndarray]], np.ndarray]:
