@@ -173,3 +173,29 @@ def test_chamber_pressures_logged_under_each_others_names_are_renamed(clean, tmp
     _declare(root, columns={"p1": "p2", "p2": "p1"})
     truth, read = read_dataset(clean).experiments[0], read_dataset(root).experiments[0]
     assert np.array_equal(read.p1, truth.p1) and np.array_equal(read.p2, truth.p2)
+
+
+def test_a_bench_loggers_export_reads_back_as_the_clean_record_a_row_early(clean, tmp_path):
+    """The ``bench`` logger (a row early, 1 % of rows lost, jittered stamps, bar gauge and mm,
+    a spreadsheet's export under its own column names, the time in ms): the reader gives back
+    the clean record's grid, command and measurements, these a row early (which only the
+    diagnosis's time base moves back), the lost rows marked and every conversion said."""
+    truth = read_dataset(clean).experiments[0]
+    root = tmp_path / "bench"
+    shutil.copytree(clean, root)
+    log("bench", root, seed=0)
+    assert (root / "sweep_1p5V.csv").read_text().startswith("# ")
+    got = read_dataset(root).experiments[0]
+    n = got.t.size
+    assert n == truth.t.size - 1 and np.array_equal(got.t, truth.t[:n])
+    lost = ~got.valid
+    assert lost.sum() == int(0.01 * n)  # of the rows the shift left
+    assert np.array_equal(got.u[~lost], truth.u[:n][~lost])
+    for s in ("y", "p1", "p2"):
+        err = np.abs(getattr(got, s)[~lost] - getattr(truth, s)[1:n + 1][~lost])
+        assert err.max() < (1e-12 if s == "y" else 1e-6), s  # [m], [Pa]
+    notes = " | ".join(got.notes)
+    for said in ("semicolon-separated, a decimal comma accepted", "Weg read as y",
+                 "t: ms -> s", "y: mm -> m", "+ 101325 Pa", "snapped to the grid",
+                 f"{lost.sum()} rows missing"):
+        assert said in notes, said

@@ -18,7 +18,11 @@ otherwise. Each logger here rewrites a recorded dataset directory as one of them
 - ``reversed_position``: a position sensor mounted the other way round: the position (and
   velocity) logged with the opposite sign, nothing declared;
 - ``crossed_pressures``: the two pressure sensors wired to each other's channels: chamber 1's
-  pressure logged as ``p2`` and chamber 2's as ``p1``, nothing declared.
+  pressure logged as ``p2`` and chamber 2's as ``p1``, nothing declared;
+- ``bench``: what a real bench's logger does all at once: ``shifted``, then ``lossy``, then
+  ``gauge_mm``, then exported from a European spreadsheet (:func:`spreadsheet`): a metadata
+  line, semicolons and decimal commas, the time in ms, the bench's own column names declared
+  in ``dataset.yaml`` beside the units, and no experiment declared closed loop.
 
 Every one of them, the package's own included, logs no velocity (:func:`without_velocity`): a
 rig has no sensor for it.
@@ -136,6 +140,42 @@ def crossed_pressures(root: Path, rng: np.random.Generator) -> None:
         _write(path, [{"p1": "p2", "p2": "p1"}.get(c, c) for c in header], data)
 
 
+#: The bench's own column names (:func:`spreadsheet`), by the contract's.
+BENCH_COLUMNS = {"t": "Zeit_ms", "u": "Ventil_V", "y": "Weg", "v": "Geschw", "p1": "Druck_A",
+                 "p2": "Druck_B", "f_load": "Last_N"}
+
+
+def spreadsheet(root: Path, rng: np.random.Generator) -> None:
+    """Every CSV as a European spreadsheet exports it: a metadata line first, semicolons and
+    decimal commas, the time in ms, the contract's columns under the bench's names
+    (:data:`BENCH_COLUMNS`; other columns keep theirs); ``dataset.yaml`` declares the names
+    and the time's unit beside any units already declared, and drops every experiment's
+    ``kind``."""
+    logged: set[str] = set()
+    for path in _files(root):
+        header, data = _read(path)
+        logged.update(header)
+        data[:, header.index("t")] *= 1e3
+        with path.open("w", newline="") as f:
+            f.write("# exported from bench logger, channels as configured\n")
+            w = csv.writer(f, delimiter=";")
+            w.writerow([BENCH_COLUMNS.get(c, c) for c in header])
+            w.writerows([[repr(float(x)).replace(".", ",") for x in row] for row in data])
+    index = root / "dataset.yaml"
+    doc = yaml.safe_load(index.read_text())
+    doc["units"] = {**doc.get("units", {}), "t": "ms"}
+    doc["columns"] = {name: c for c, name in BENCH_COLUMNS.items() if c in logged}
+    for entry in doc["experiments"]:
+        entry.pop("kind", None)
+    index.write_text(yaml.safe_dump(doc, sort_keys=False))
+
+
+def bench(root: Path, rng: np.random.Generator) -> None:
+    """:func:`shifted`, :func:`lossy`, :func:`gauge_mm` and :func:`spreadsheet`, in turn."""
+    for step in (shifted, lossy, gauge_mm, spreadsheet):
+        step(root, rng)
+
+
 one_pressure = _drop(("p2",))
 position_only = _drop(("p1", "p2"))
 
@@ -149,7 +189,7 @@ def without_velocity(root: Path) -> None:
 LOGGERS: dict[str, Callable[[Path, np.random.Generator], None]] = {
     "shifted": shifted, "lossy": lossy, "gauge_mm": gauge_mm, "one_pressure": one_pressure,
     "position_only": position_only, "reversed_position": reversed_position,
-    "crossed_pressures": crossed_pressures,
+    "crossed_pressures": crossed_pressures, "bench": bench,
 }
 #: Sensors each logger leaves (None: all three).
 SENSORS = {"one_pressure": ("y", "p1"), "position_only": ("y",)}

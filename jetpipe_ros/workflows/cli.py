@@ -162,7 +162,9 @@ def add_command(subparsers) -> None:
                    help="rewrite each record as another data logger would (a row off, 1 %% of "
                         "rows lost with jittered stamps, gauge bar and mm declared, one or no "
                         "pressure sensor, a position counted the other way, the pressures "
-                        "crossed; default: none, the package's own convention)")
+                        "crossed, or 'bench': a row off, lost rows, jitter, gauge bar and mm "
+                        "and a spreadsheet's export with its own column names at once; "
+                        "default: none, the package's own convention)")
     c.add_argument("--rate", type=float, default=1000.0,
                    help="sample rate of the records [Hz] (default 1000)")
     c.add_argument("--deviations", action=argparse.BooleanOptionalAction, default=True,
