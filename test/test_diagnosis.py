@@ -15,6 +15,7 @@ from scipy.signal import chirp
 from jetpipe_ros.cli import main
 from jetpipe_ros.dataset import DatasetError, Entry, read_dataset, write_dataset
 from jetpipe_ros.workflows import diagnose
+from jetpipe_ros.workflows.cli import summary_lines
 from jetpipe_ros.diagnosis.calibration import CALIBRATION, group
 from jetpipe_ros.diagnosis.candidates import CANDIDATES
 from jetpipe_ros.diagnosis.data import noise_level, prepare
@@ -177,6 +178,17 @@ def test_nominal_data_gives_none(tmp_path):
     assert not result["calibration"]["significant"]
     # Nothing beyond noise in the model's equations either.
     assert result["localization"]["equations"]["missing"] is None
+    # How small an effect these records would show: a valve delay (both pressures logged, each
+    # answering the command late) from under its typical 3 ms; every candidate judged said.
+    limits = result["visibility"]["smallest_shown"]
+    assert set(limits) == set(result["visibility"]["at_typical_size_gap_pct"])
+    assert 0.05 < limits["valve_delay"]["times_typical"] < 1.0
+    assert limits["valve_delay"]["values"]["delay"] < 0.003
+    lines = summary_lines(result, "out")
+    assert any(line.startswith("smallest size shown, times the typical") and "valve_delay 0."
+               in line for line in lines)
+    report = (tmp_path / "out" / "report.html").read_text()
+    assert "smallest size shown [x typical]" in report
 
 
 def test_the_localisation_points_at_the_valve_for_a_valve_lag(lag_result):
@@ -194,6 +206,7 @@ def test_the_localisation_points_at_the_valve_for_a_valve_lag(lag_result):
     assert sub["valve_and_chambers"]["gap"] > sub["mechanics"]["gap"]
     assert result["visibility"]["at_typical_size_gap_pct"]["valve_lag:first_order"] > 1.0
     assert "valve_lag:first_order" not in result["visibility"]["too_small_to_see"]
+    assert "smallest_shown" not in result["visibility"]  # an effect is named: no limits
 
 
 def test_a_nominal_model_with_the_effect_on_has_nothing_left(tmp_path):

@@ -479,6 +479,34 @@ def test_a_delay_the_recalibration_imitates_on_the_position_alone_is_not_ruled_o
     assert imitated_effects(found["both"]) == {}
 
 
+def test_how_small_a_delay_would_show_depends_on_the_pressures_logged(
+        parameters_only_recalibrated):
+    """The detection limit of a ``none`` (:mod:`detection`): with both pressures the delay of
+    each pressure's answer is what no knob imitates, and more than twice the bar is left of a
+    typical 3 ms delay (above), so the size at which the leftover reaches the bar lies below
+    half the typical; with the position alone the typical delay is imitated, so that size lies
+    above it (or beyond the search range). At the size found, the leftover is the bar."""
+    from jetpipe_ros.diagnosis.candidates import CANDIDATES
+    from jetpipe_ros.diagnosis.collinearity import Imitator
+    from jetpipe_ros.diagnosis.detection import detection_limit, sized
+    from jetpipe_ros.diagnosis.verdict import NOISE_GAP
+
+    delay = CANDIDATES["valve_delay"]
+    limits, left = {}, {}
+    for label, (_, cal, prepared) in parameters_only_recalibrated.items():
+        imitator = Imitator(prepared, ModelParams(), cal)
+        limits[label] = detection_limit(imitator, delay)
+        if limits[label]["times_typical"] is not None:
+            left[label] = imitator.imitate(delay, limits[label]["values"])[1]
+    both, alone = limits["both"], limits["position"]
+    assert both["note"] is None and 0.02 < both["times_typical"] < 0.5
+    assert both["values"] == sized(delay, both["times_typical"])
+    assert both["values"]["delay"] == pytest.approx(0.003 * both["times_typical"])
+    assert alone["times_typical"] is None or alone["times_typical"] > 1.0
+    for label, x in left.items():
+        assert x == pytest.approx(NOISE_GAP, rel=0.1), label
+
+
 def test_which_pressure_sensor_would_tell_an_imitated_delay(parameters_only_recalibrated):
     """The 3 ms valve delay the recalibration imitates on the position alone (above) is not
     imitated on the same experiments as a rig with either chamber's pressure sensor would have

@@ -67,6 +67,38 @@ from jetpipe_ros.model import ModelParams
 NAMED_MOVE = 0.02
 
 
+class Imitator:
+    """The calibration knobs' best linear imitation of a model's change, at the recalibrated
+    model ``recalibrated`` (the minimisation above, set up once for many signatures)."""
+
+    def __init__(self, prepared: Prepared, nominal: ModelParams, recalibrated: Fit) -> None:
+        self.prepared, self.params = prepared, recalibrated.params
+        self.knobs = [k.name for k in CALIBRATION.knobs]
+        self.base = residual_vector(prepared, predict_all(self.params, prepared, None), None)
+        self.jac = calibration_jacobian(prepared, nominal, recalibrated.z, None)
+        self.root = math.sqrt(effective_samples(recalibrated.train, prepared.dt) / max(
+            recalibrated.train.noise_total, 1e-300))
+        self.design = np.vstack([self.root * self.jac,
+                                 np.diag([1.0 / SPREAD[k] for k in self.knobs])])
+        factors = recalibrated.values[CALIBRATION.name]
+        low = np.array([math.log(k.low / factors[k.name]) for k in CALIBRATION.knobs])
+        high = np.array([math.log(k.high / factors[k.name]) for k in CALIBRATION.knobs])
+        self.bounds = (np.minimum(low, 0.0), np.maximum(high, 0.0))  # round-off at a bound
+
+    def imitate(self, cand: Candidate, values: Mapping[str, float]
+                ) -> tuple[float, float, np.ndarray]:
+        """``cand`` switched on at ``values`` on the recalibrated model: its signature's gap
+        [%], the gap [%] the knobs' best imitation leaves of it, and the knobs' moves (natural
+        logs of their factors)."""
+        on = cand.apply(self.params, dict(values))
+        sig = residual_vector(self.prepared, predict_all(on, self.prepared, None), None) \
+            - self.base
+        target = np.concatenate([-self.root * sig, np.zeros(len(self.knobs))])
+        delta = lsq_linear(self.design, target, bounds=self.bounds).x
+        left = sig + self.jac @ delta
+        return 100.0 * float(np.linalg.norm(sig)), 100.0 * float(np.linalg.norm(left)), delta
+
+
 def imitations(prepared: Prepared, nominal: ModelParams, recalibrated: Fit,
                candidates: Sequence[Candidate]) -> dict[str, dict]:
     """For each of ``candidates`` (on the recalibrated model ``recalibrated``, a fit of the
@@ -75,29 +107,14 @@ def imitations(prepared: Prepared, nominal: ModelParams, recalibrated: Fit,
     the factors the imitation moves the knobs to (those moved by :data:`NAMED_MOVE` or more)."""
     if not candidates:
         return {}
-    knobs = [k.name for k in CALIBRATION.knobs]
-    base_params = recalibrated.params
-    base = residual_vector(prepared, predict_all(base_params, prepared, None), None)
-    jac = calibration_jacobian(prepared, nominal, recalibrated.z, None)
-    root = math.sqrt(effective_samples(recalibrated.train, prepared.dt) / max(
-        recalibrated.train.noise_total, 1e-300))
-    design = np.vstack([root * jac, np.diag([1.0 / SPREAD[k] for k in knobs])])
-    factors = recalibrated.values[CALIBRATION.name]
-    bounds = (np.array([math.log(k.low / factors[k.name]) for k in CALIBRATION.knobs]),
-              np.array([math.log(k.high / factors[k.name]) for k in CALIBRATION.knobs]))
-    bounds = (np.minimum(bounds[0], 0.0), np.maximum(bounds[1], 0.0))  # round-off at a bound
+    imitator = Imitator(prepared, nominal, recalibrated)
     out = {}
     for cand in candidates:
-        on = cand.apply(base_params, dict(cand.typical))
-        sig = residual_vector(prepared, predict_all(on, prepared, None), None) - base
-        target = np.concatenate([-root * sig, np.zeros(len(knobs))])
-        delta = lsq_linear(design, target, bounds=bounds).x
-        left = sig + jac @ delta
-        shown, kept = 100.0 * float(np.linalg.norm(sig)), 100.0 * float(np.linalg.norm(left))
+        shown, kept, delta = imitator.imitate(cand, cand.typical)
         out[cand.name] = {
             "signature_gap_pct": shown, "left_gap_pct": kept,
             "imitated": shown >= NOISE_GAP > kept,
-            "knobs": {k: math.exp(d) for k, d in zip(knobs, delta)
+            "knobs": {k: math.exp(d) for k, d in zip(imitator.knobs, delta)
                       if abs(math.exp(d) - 1.0) >= NAMED_MOVE},
         }
     return out

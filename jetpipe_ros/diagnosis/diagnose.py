@@ -32,9 +32,10 @@ from jetpipe_ros.diagnosis import calibration
 from jetpipe_ros.diagnosis.alignment import Alignment, align
 from jetpipe_ros.diagnosis.calibration import CALIBRATION
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate, combinable, effect_of
-from jetpipe_ros.diagnosis.collinearity import (imitated_effects, imitations, sensor_words,
-                                                with_added_sensors)
+from jetpipe_ros.diagnosis.collinearity import (Imitator, imitated_effects, imitations,
+                                                sensor_words, with_added_sensors)
 from jetpipe_ros.diagnosis.data import Prepared, prepare, swapped
+from jetpipe_ros.diagnosis.detection import detection_limits
 from jetpipe_ros.diagnosis.fit import (BUDGET, Fit, stacked, switched_off, uncertainty,
                                       with_nuisance)
 from jetpipe_ros.diagnosis.jobs import IN_PROCESS, Fitter, Job, Workers, run_job
@@ -581,6 +582,10 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
         result["verdict"]["reason"] += "; " + _gauge_words(result["verdict"])
     result["gap"]["persistence"] = still.gap
     result["verdict"]["model_fits"] = fits
+    if fits and result["verdict"]["effect"] == "none":
+        progress("the smallest size of each candidate these records would show")
+        result["visibility"]["smallest_shown"] = detection_limits(
+            Imitator(prepared, nominal, cal), candidates)
     if not fits:
         augmented = nominal
         result["verdict"].update(_no_fit(result["verdict"], aug_hold.gap, still.gap),

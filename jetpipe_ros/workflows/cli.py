@@ -29,9 +29,11 @@ def summary_lines(result: dict, out: str) -> list[str]:
     """The last lines ``jetpipe diagnose`` prints of a diagnosis (``result``: diagnosis.json's
     content; ``out``: its folder): the signs when they were not the contract's, the time
     base, the verdict, what a ``none`` cannot rule out and which pressure sensor would tell it
-    (not when the model does not describe the hardware: then no effect is in question), what
-    the records cannot judge, the held-out gap and where the files are."""
+    (not when the model does not describe the hardware: then no effect is in question), how
+    small an effect its records would show, what the records cannot judge, the held-out gap
+    and where the files are."""
     from jetpipe_ros.diagnosis.collinearity import ADDED, imitated_effects, telling
+    from jetpipe_ros.diagnosis.detection import limit_words
 
     v, g = result["verdict"], result["gap"]
     signs = result["data"].get("signs")
@@ -50,6 +52,7 @@ def summary_lines(result: dict, out: str) -> list[str]:
         tell = (f"; {sensors} pressure{'s' if sensors == 'both' else ''} would tell" if sensors
                 else "; not even the pressures these records lack would tell" if added else "")
         lines.append(f"cannot rule out {effect}: the recalibration imitates it{tell}")
+    lines += limit_words(result["visibility"].get("smallest_shown", {}))
     for effect, why in result["data"].get("cannot_judge", {}).items():
         lines.append(f"not judged: {effect} ({why})")
     lines += [f"held-out gap ({g['metric']}): nominal {g['nominal']:.2f} %, augmented "

@@ -434,6 +434,16 @@ def summary(result: dict) -> str:
         lines.append("At its typical size the named effect (" + ", ".join(
             f"<code>{h}</code>" for h in named) + ") would not show in these experiments "
             "either: what it explains here is small (see above).")
+    unseen = [c for c, r in result["visibility"].get("smallest_shown", {}).items()
+              if r["times_typical"] is None and r["note"].startswith("not shown")]
+    if unseen:
+        lines.append("Not shown at any size within its search range, so this answer says "
+                     "nothing of: " + ", ".join(f"<code>{c}</code>" for c in unseen)
+                     + "; the smallest size of each other candidate these records would show "
+                     "is in <i>What these experiments can show</i>.")
+    elif result["visibility"].get("smallest_shown"):
+        lines.append("The smallest size of each candidate these records would show is in "
+                     "<i>What these experiments can show</i>.")
     imitated = result["visibility"].get("not_ruled_out", [])
     if imitated:
         lines.append("<b>Not ruled out</b> by this answer: "
@@ -442,6 +452,16 @@ def summary(result: dict) -> str:
                      "(see <i>What these experiments can show</i>): "
                      + _what_would_tell(result, imitated))
     return "<p>" + "</p><p>".join(lines) + "</p>"
+
+
+def _limit_cell(limit: dict) -> _Html:
+    """A detection limit (:func:`jetpipe_ros.diagnosis.detection.detection_limit`) for the
+    table of what the experiments can show: the size and the parameters there, or why there is
+    none."""
+    values = html.escape(", ".join(f"{k}={v:.3g}" for k, v in limit["values"].items()))
+    if limit["times_typical"] is None:
+        return _Html(f"<div class='params'>{html.escape(limit['note'])} ({values})</div>")
+    return _Html(f"<div class='params'>{limit['times_typical']:.2g} ({values})</div>")
 
 
 def _what_would_tell(result: dict, effects: list[str]) -> str:
@@ -628,11 +648,14 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
     imitated = result["visibility"].get("imitated_by_recalibration", {})
     # With a chamber pressure missing: what the imitation would leave with it logged.
     added = any("with_sensors" in row for row in imitated.values())
+    # For a verdict of no effect: the smallest size of each candidate these records show.
+    limits = result["visibility"].get("smallest_shown", {})
     vis_rows = [[e, x, "yes" if x >= result["visibility"]["threshold_gap_pct"] else "no",
                  imitated[e]["left_gap_pct"] if e in imitated else "-",
                  *([", ".join(f"{k} {v:.2f}" for k, v in
                               imitated.get(e, {}).get("with_sensors", {}).items()) or "-"]
-                   if added else [])]
+                   if added else []),
+                 *([_limit_cell(limits[e]) if e in limits else "-"] if limits else [])]
                 for e, x in vis.items()]
     data = result["data"]
     sensors = data.get("sensors", ["y", "p1", "p2"])
@@ -688,15 +711,23 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
         "<h2>What these experiments can show</h2>",
         "<p>Signature of each candidate at its typical size: the held-out gap [%] it would open "
         "on these experiments; below the 0.5 % that counts as beyond noise the data cannot tell "
-        "whether it is there. The last column is what is left of it once the recalibration's "
-        "knobs imitate it as best they can: below 0.5 %, an answer of no effect does not rule "
-        "it out." + (" For those, the last column is what would be left on the same "
-                     "experiments had the rig also logged a chamber's pressure (p1, p2) or both: "
-                     "above 0.5 %, that sensor would tell it from parameters that are off."
-                     if added else "") + "</p>",
+        "whether it is there. The column <i>left after the knobs imitate it</i> is what is left "
+        "of it once the recalibration's knobs imitate it as best they can: below 0.5 %, an "
+        "answer of no effect does not rule it out."
+        + (" For those, the column <i>left were these pressures logged too</i> is what would be "
+           "left on the same experiments had the rig also logged a chamber's pressure (p1, p2) "
+           "or both: above 0.5 %, that sensor would tell it from parameters that are off."
+           if added else "") + "</p>",
+        *(["<p>No effect was named: the last column is the smallest size of each candidate "
+           "these records would show, as a multiple of its typical size and its parameters "
+           "there (SI units): the size at which what is left once the knobs imitate it reaches "
+           "0.5 %. From it on the effect stands out beyond noise after any recalibration, so "
+           "this answer speaks against it; the diagnosis' own tests often find smaller "
+           "effects (a bound from above, a linear check).</p>"] if limits else []),
         _table(vis_rows, ["candidate", "gap at typical size [%]", "visible",
                           "left after the knobs imitate it [%]",
-                          *(["left were these pressures logged too [%]"] if added else [])]),
+                          *(["left were these pressures logged too [%]"] if added else []),
+                          *(["smallest size shown [x typical]"] if limits else [])]),
         "<h2>Data</h2>",
         f"<p>Split: {html.escape(data['split'])}. Sample time {data['sample_time_s'] * 1e3:g} "
         f"ms. Signals measured: {', '.join(sensors)}. Estimated sensor noise: "
