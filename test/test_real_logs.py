@@ -465,10 +465,11 @@ def test_a_delay_the_recalibration_imitates_on_the_position_alone_is_not_ruled_o
     rule it out. With both pressures, the delay of each pressure's answer to the command is
     what no knob changes: more than the bar is left, and it is not imitated."""
     from jetpipe_ros.diagnosis.candidates import CANDIDATES
-    from jetpipe_ros.diagnosis.collinearity import imitated_effects, imitations
+    from jetpipe_ros.diagnosis.collinearity import Imitator, imitated_effects, imitations
     from jetpipe_ros.diagnosis.verdict import NOISE_GAP
 
-    found = {label: imitations(prepared, ModelParams(), cal, [CANDIDATES["valve_delay"]])
+    delay = [CANDIDATES["valve_delay"]]
+    found = {label: imitations(Imitator(prepared, ModelParams(), cal), delay)
              for label, (_, cal, prepared) in parameters_only_recalibrated.items()}
     both, alone = found["both"]["valve_delay"], found["position"]["valve_delay"]
     assert both["signature_gap_pct"] > NOISE_GAP and alone["signature_gap_pct"] > NOISE_GAP
@@ -517,8 +518,8 @@ def test_which_pressure_sensor_would_tell_an_imitated_delay(parameters_only_reca
     seen: 3.28 % against 3.15 %, of signatures 4.69 % each); a replay normalised by another
     spread (the campaign's, with the locked tests: 1.22 % left) would be off by a factor 2.7."""
     from jetpipe_ros.diagnosis.candidates import CANDIDATES
-    from jetpipe_ros.diagnosis.collinearity import (imitated_effects, imitations, sensor_words,
-                                                    with_added_sensors)
+    from jetpipe_ros.diagnosis.collinearity import (Imitator, imitated_effects, imitations,
+                                                    sensor_words, with_added_sensors)
     from jetpipe_ros.diagnosis.data import MIN_SCALE
     from jetpipe_ros.diagnosis.noise_floor import calibrate
     from jetpipe_ros.diagnosis.score import predict_all, score
@@ -526,7 +527,7 @@ def test_which_pressure_sensor_would_tell_an_imitated_delay(parameters_only_reca
 
     delay = [CANDIDATES["valve_delay"]]
     _, cal, position = parameters_only_recalibrated["position"]
-    found = imitations(position, ModelParams(), cal, delay)
+    found = imitations(Imitator(position, ModelParams(), cal), delay)
     with_added_sensors(position, ModelParams(), cal, delay, found)
     added = found["valve_delay"]["with_sensors"]
     assert set(added) == {"p1", "p2", "p1+p2"}
@@ -545,7 +546,8 @@ def test_which_pressure_sensor_would_tell_an_imitated_delay(parameters_only_reca
     logged = dataclasses.replace(both, records=records, scale=scale)
     logged.floor, logged.floor_windows = calibrate(logged, cal.params)
     train = score(logged, predict_all(cal.params, logged, "train"), "train")
-    real = imitations(logged, ModelParams(), dataclasses.replace(cal, train=train), delay)
+    real = imitations(Imitator(logged, ModelParams(), dataclasses.replace(cal, train=train)),
+                      delay)
     assert added["p1+p2"] == pytest.approx(real["valve_delay"]["left_gap_pct"], rel=0.10)
 
 

@@ -99,15 +99,11 @@ class Imitator:
         return 100.0 * float(np.linalg.norm(sig)), 100.0 * float(np.linalg.norm(left)), delta
 
 
-def imitations(prepared: Prepared, nominal: ModelParams, recalibrated: Fit,
-               candidates: Sequence[Candidate]) -> dict[str, dict]:
-    """For each of ``candidates`` (on the recalibrated model ``recalibrated``, a fit of the
+def imitations(imitator: Imitator, candidates: Sequence[Candidate]) -> dict[str, dict]:
+    """For each of ``candidates`` (on the recalibrated model of ``imitator``, a fit of the
     calibration knobs alone): its signature's gap [%], the gap [%] the knobs' best linear
     imitation leaves of it, whether that is below :data:`verdict.NOISE_GAP` (``imitated``) and
     the factors the imitation moves the knobs to (those moved by :data:`NAMED_MOVE` or more)."""
-    if not candidates:
-        return {}
-    imitator = Imitator(prepared, nominal, recalibrated)
     out = {}
     for cand in candidates:
         shown, kept, delta = imitator.imitate(cand, cand.typical)
@@ -134,7 +130,8 @@ def with_added_sensors(prepared: Prepared, nominal: ModelParams, recalibrated: F
         rig = _as_logged_with(prepared, recalibrated.params, added,
                               nominal["sensors.pressure_sigma"])
         train = score(rig, predict_all(recalibrated.params, rig, "train"), "train")
-        seen = imitations(rig, nominal, dataclasses.replace(recalibrated, train=train), hidden)
+        seen = imitations(Imitator(rig, nominal, dataclasses.replace(recalibrated, train=train)),
+                          hidden)
         for c in hidden:
             found[c.name].setdefault("with_sensors", {})["+".join(added)] = \
                 seen[c.name]["left_gap_pct"]

@@ -37,7 +37,7 @@ from collections.abc import Mapping, Sequence
 
 from scipy.optimize import brentq
 
-from jetpipe_ros.diagnosis.candidates import Candidate
+from jetpipe_ros.diagnosis.candidates import Candidate, Knob
 from jetpipe_ros.diagnosis.collinearity import Imitator
 from jetpipe_ros.diagnosis.verdict import NOISE_GAP
 
@@ -49,14 +49,24 @@ SMALLEST = 1e-3
 TOLERANCE = 0.05
 
 
+#: Why a candidate has no limit: not shown even at the end of its search range.
+NOT_SHOWN = "not shown within its search range"
+
+
+def _scaled(cand: Candidate) -> list[tuple[Knob, float]]:
+    """The knobs of ``cand`` that move along its size, with their typical values: those of its
+    typical size that do not set a form's shape and whose typical value is not where the
+    effect vanishes."""
+    return [(knob, cand.typical[knob.name]) for knob in cand.knobs
+            if knob.name in cand.typical and not knob.extent
+            and cand.typical[knob.name] != knob.off]
+
+
 def sized(cand: Candidate, size: float) -> dict[str, float]:
     """The knobs of ``cand`` at ``size`` times its typical size (0: the effect vanishes, 1:
     typical); see the module's docstring."""
     out = dict(cand.typical)
-    for knob in cand.knobs:
-        typical = cand.typical.get(knob.name)
-        if typical is None or knob.extent or typical == knob.off:
-            continue
+    for knob, typical in _scaled(cand):
         if knob.log:
             out[knob.name] = knob.off * (typical / knob.off) ** size
         else:
@@ -68,11 +78,8 @@ def largest_size(cand: Candidate) -> float:
     """The size [multiple of the typical] at which the first of ``cand``'s knobs along the line
     of :func:`sized` reaches the end of its search range."""
     ends = []
-    for knob in cand.knobs:
-        typical = cand.typical.get(knob.name)
-        if typical is None or knob.extent or typical == knob.off:
-            continue
-        end = knob.high if (typical > knob.off) else knob.low
+    for knob, typical in _scaled(cand):
+        end = knob.high if typical > knob.off else knob.low
         if knob.log:
             ends.append(math.log(end / knob.off) / math.log(typical / knob.off))
         else:
@@ -96,7 +103,7 @@ def detection_limit(imitator: Imitator, cand: Candidate) -> dict:
         y = min(max(x + step, bottom), top)
         if y == x:  # at the end of the range or of the search: no crossing
             note = (f"shown at every size down to {SMALLEST:g} of its typical" if fx >= 0.0
-                    else "not shown within its search range")
+                    else NOT_SHOWN)
             return {"times_typical": None, "values": sized(cand, math.exp(x)), "note": note}
         fy = excess(y)
         if (fy >= 0.0) != (fx >= 0.0):
@@ -111,18 +118,23 @@ def detection_limits(imitator: Imitator, candidates: Sequence[Candidate]) -> dic
     return {cand.name: detection_limit(imitator, cand) for cand in candidates}
 
 
+def unseen(limits: Mapping[str, Mapping]) -> list[str]:
+    """The candidates of :func:`detection_limits` not shown at any size within their search
+    range: an answer of no effect says nothing of them."""
+    return [c for c, r in limits.items() if r["note"] == NOT_SHOWN]
+
+
 def limit_words(limits: Mapping[str, Mapping]) -> list[str]:
     """Words for :func:`detection_limits`: the candidates that would show from a size, as
     multiples of their typical size, and those these records would not show at any size within
     their search range."""
     shown = {c: r["times_typical"] for c, r in limits.items() if r["times_typical"] is not None}
-    unseen = [c for c, r in limits.items()
-              if r["times_typical"] is None and r["note"].startswith("not shown")]
     words = []
     if shown:
         words.append("smallest size shown, times the typical (from it on the effect stands "
                      "out beyond noise after any recalibration): "
                      + ", ".join(f"{c} {x:.2g}" for c, x in shown.items()))
-    if unseen:
-        words.append(f"not shown at any size within its search range: {', '.join(unseen)}")
+    hidden = unseen(limits)
+    if hidden:
+        words.append(f"not shown at any size within its search range: {', '.join(hidden)}")
     return words

@@ -479,7 +479,8 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
     cal = recalibrate(prepared, nominal, progress)
     progress("which candidates the recalibration could imitate on these records")
     visible = [c for c in candidates if seen[c.name] >= NOISE_GAP]
-    imitation = imitations(prepared, nominal, cal, visible)
+    imitator = Imitator(prepared, nominal, cal)
+    imitation = imitations(imitator, visible)
     with_added_sensors(prepared, nominal, cal, visible, imitation)
     with Fitter(prepared, swapped(prepared), workers, progress) as fitter:
         (cal_row,) = rank([cal], nom_hold, nom_windows, dt)
@@ -584,8 +585,7 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
     result["verdict"]["model_fits"] = fits
     if fits and result["verdict"]["effect"] == "none":
         progress("the smallest size of each candidate these records would show")
-        result["visibility"]["smallest_shown"] = detection_limits(
-            Imitator(prepared, nominal, cal), candidates)
+        result["visibility"]["smallest_shown"] = detection_limits(imitator, candidates)
     if not fits:
         augmented = nominal
         result["verdict"].update(_no_fit(result["verdict"], aug_hold.gap, still.gap),

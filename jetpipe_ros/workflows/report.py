@@ -20,6 +20,7 @@ from jetpipe_ros.dataset import grouped_notes
 from jetpipe_ros.diagnosis.calibration import NAME as CALIBRATION_GROUP
 from jetpipe_ros.diagnosis.collinearity import ADDED, imitated_effects, telling
 from jetpipe_ros.diagnosis.data import Prepared, Record
+from jetpipe_ros.diagnosis.detection import unseen
 from jetpipe_ros.diagnosis.diagnose import NOT_RULED_OUT
 from jetpipe_ros.diagnosis.nuisance import words as nuisance_words
 from jetpipe_ros.diagnosis.separation import words as stand_in_words
@@ -434,11 +435,10 @@ def summary(result: dict) -> str:
         lines.append("At its typical size the named effect (" + ", ".join(
             f"<code>{h}</code>" for h in named) + ") would not show in these experiments "
             "either: what it explains here is small (see above).")
-    unseen = [c for c, r in result["visibility"].get("smallest_shown", {}).items()
-              if r["times_typical"] is None and r["note"].startswith("not shown")]
-    if unseen:
+    hidden_at_any_size = unseen(result["visibility"].get("smallest_shown", {}))
+    if hidden_at_any_size:
         lines.append("Not shown at any size within its search range, so this answer says "
-                     "nothing of: " + ", ".join(f"<code>{c}</code>" for c in unseen)
+                     "nothing of: " + ", ".join(f"<code>{c}</code>" for c in hidden_at_any_size)
                      + "; the smallest size of each other candidate these records would show "
                      "is in <i>What these experiments can show</i>.")
     elif result["visibility"].get("smallest_shown"):
@@ -458,7 +458,7 @@ def _limit_cell(limit: dict) -> _Html:
     """A detection limit (:func:`jetpipe_ros.diagnosis.detection.detection_limit`) for the
     table of what the experiments can show: the size and the parameters there, or why there is
     none."""
-    values = html.escape(", ".join(f"{k}={v:.3g}" for k, v in limit["values"].items()))
+    values = _values_text(limit["values"])
     if limit["times_typical"] is None:
         return _Html(f"<div class='params'>{html.escape(limit['note'])} ({values})</div>")
     return _Html(f"<div class='params'>{limit['times_typical']:.2g} ({values})</div>")
@@ -551,13 +551,15 @@ def _params_cell(params: dict) -> _Html:
         else:
             flat[k] = v
 
-    def text(values: dict) -> str:
-        return html.escape(", ".join(f"{k}={v:.3g}" for k, v in values.items()
-                                     if isinstance(v, (int, float))))
-
-    folded = (f"<details><summary>calibration</summary>{text(knobs)}</details>"
+    folded = (f"<details><summary>calibration</summary>{_values_text(knobs)}</details>"
               if knobs else "")
-    return _Html(f"<div class='params'>{text(flat)}{folded}</div>")
+    return _Html(f"<div class='params'>{_values_text(flat)}{folded}</div>")
+
+
+def _values_text(values: dict) -> str:
+    """Parameters as ``name=value`` (3 digits), escaped; what is not a number left out."""
+    return html.escape(", ".join(f"{k}={v:.3g}" for k, v in values.items()
+                                 if isinstance(v, (int, float))))
 
 
 def _breakable(name: str) -> _Html:
