@@ -472,6 +472,47 @@ def test_a_rod_that_never_moves_is_one_line_naming_the_record(tmp_path, capsys):
     assert not out.exists()
 
 
+def test_a_seal_that_cannot_be_fitted_does_not_keep_the_others_from_it(tmp_path, capsys):
+    """Two seals in one folder: the O-ring's record to fit, the PK seal's only ``role:
+    holdout`` (nothing of it to fit). The O-ring is fitted as it is alone, to the same held-out
+    scores; the PK seal is said not fitted, with the reason naming it and its file, on the
+    console, in friction.json and the report, and has no prediction. A folder whose every seal
+    is unusable is still one line and nothing written."""
+    root = tmp_path / "rig"
+    root.mkdir()
+    for name in ("O-ring_3bar.csv", "PK_1bar.csv"):
+        shutil.copy(SEALS / name, root)
+    ring = f"  - {{file: O-ring_3bar.csv, seal: O-ring, bore: {BORE}}}\n"
+    (root / "records.yaml").write_text(
+        "records:\n" + ring + f"  - {{file: PK_1bar.csv, seal: PK, bore: {BORE}, role: holdout}}\n")
+    out = tmp_path / "out"
+    assert main(["friction", str(root), "--out", str(out), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    reason = "seal PK: no moving training samples in PK_1bar.csv (all role: holdout"
+    doc = json.loads((out / "friction.json").read_text())
+    assert set(doc["seals"]) == {"O-ring"} and reason in doc["not_fitted"]["PK"]
+    assert f"not fitted: {reason}" in printed
+    assert reason in html.unescape((out / "report.html").read_text())
+    assert not (out / "prediction" / "PK_1bar.csv").exists()
+    assert (out / "prediction" / "O-ring_3bar.csv").exists()
+
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    shutil.copy(SEALS / "O-ring_3bar.csv", alone)
+    (alone / "records.yaml").write_text("records:\n" + ring)
+    assert main(["friction", str(alone), "--out", str(tmp_path / "out_alone"), "--quiet"]) == 0
+    single = json.loads((tmp_path / "out_alone" / "friction.json").read_text())
+    assert single["seals"]["O-ring"]["records"] == doc["seals"]["O-ring"]["records"]
+    assert single["not_fitted"] == {}
+
+    (root / "records.yaml").write_text(
+        f"records:\n  - {{file: PK_1bar.csv, seal: PK, bore: {BORE}, role: holdout}}\n")
+    assert main(["friction", str(root), "--out", str(tmp_path / "none")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and reason in err
+    assert not (tmp_path / "none").exists()
+
+
 def test_the_actuators_own_friction_tests_feed_the_friction_command(tmp_path, capsys):
     """A dataset of the actuator's own friction tests (regulated pressures, piston released,
     both pressures measured) instead of a rig folder: friction from Eq. 19, the static form

@@ -105,6 +105,8 @@ SETTLED = 3e-3
 #: direction: along a single pass the position is confounded with the speed and the time (an
 #: actuator's friction test slides once), so the factors would take the Stribeck curve's shape.
 MIN_PASSES = 2
+#: Fewest held-out moving samples [rows] a record is judged on.
+MIN_JUDGED = 10
 #: Evaluations of the refit of the other parameters with the profile held.
 PROFILE_NFEV = 60
 
@@ -721,13 +723,17 @@ class SealResult:
 
 def training(seal: str, preps: list[Prepared], split: float = 0.5) -> list[Prepared]:
     """The records of one seal that have moving training samples; DatasetError naming the seal
-    and its files if none has."""
+    and its files if none has, or if no record has :data:`MIN_JUDGED` held-out moving samples
+    (nothing to judge the forms on)."""
     trained = [p for p in preps if p.train.any()]
+    files = ", ".join(p.record.file for p in preps)
     if not trained:
-        files = ", ".join(p.record.file for p in preps)
         raise DatasetError(f"{f'seal {seal}: ' if seal else ''}no moving training samples in "
                            f"{files} (all role: holdout, or the rod never moves faster than "
                            f"{MIN_SPEED * 1e3:g} mm/s; split {split:g})")
+    if not any(p.test.sum() >= MIN_JUDGED for p in preps):
+        raise DatasetError(f"{f'seal {seal}: ' if seal else ''}no held-out moving samples in "
+                           f"{files} (split {split:g})")
     return trained
 
 
@@ -762,14 +768,10 @@ def identify_seal(seal: str, preps: list[Prepared], split: float = 0.5,
     for form in FORMS:
         judged[form] = {}
         for p in preps:
-            if p.test.sum() >= 10:
+            if p.test.sum() >= MIN_JUDGED:
                 fit = per_record[form].get(p.record.name, seal_fits[form])
                 judged[form][p.record.name] = scores(
                     p.friction[p.test], fit.predict(p)[p.test], p.v[p.test])
-    if not judged[FORMS[0]]:
-        files = ", ".join(p.record.file for p in preps)
-        raise DatasetError(f"{f'seal {seal}: ' if seal else ''}no held-out moving samples in "
-                           f"{files} (split {split:g})")
     left_out = tuple(p.record.file for p in preps
                      if p.record.role != "holdout" and p not in trained)
     unfitted = tuple(d for d in DIRECTIONS if not any(p.moves(d) for p in trained))

@@ -21,17 +21,36 @@ from jetpipe_ros.arguments import positive_int
 from jetpipe_ros.progress import Progress
 
 
-def _fit_all(seals: dict[str, list], split: float, jobs: int, progress: Progress) -> dict:
-    """Every form fitted to every seal's records (seal -> form -> :func:`fit_seal_form`'s
-    result), on ``jobs`` processes, each fit's end said through ``progress``."""
-    from jetpipe_ros.identify.seal import FORMS, training
+def usable(seals: dict[str, list], split: float) -> tuple[dict[str, list], dict[str, str]]:
+    """The training records of each seal that can be fitted and judged (seal -> records:
+    :func:`jetpipe_ros.identify.seal.training`), and why each other seal cannot (seal ->
+    the reason, naming the seal and its files). DatasetError when no seal can: one seal's
+    records that cannot be fitted do not keep the others from being fitted."""
+    from jetpipe_ros.dataset import DatasetError
+    from jetpipe_ros.identify.seal import training
 
-    trained = {seal: training(seal, preps, split) for seal, preps in seals.items()}
-    tasks = [(seal, form) for seal in seals for form in FORMS]
-    progress(f"fitting {len(FORMS)} forms to {len(seals)} seal(s) "
+    trained, refused = {}, {}
+    for seal, preps in seals.items():
+        try:
+            trained[seal] = training(seal, preps, split)
+        except DatasetError as err:
+            refused[seal] = str(err)
+    if not trained:
+        raise DatasetError("; ".join(refused.values()))
+    return trained, refused
+
+
+def _fit_all(trained: dict[str, list], jobs: int, progress: Progress) -> dict:
+    """Every form fitted to every seal's training records ``trained`` (seal -> form ->
+    :func:`fit_seal_form`'s result), on ``jobs`` processes, each fit's end said through
+    ``progress``."""
+    from jetpipe_ros.identify.seal import FORMS
+
+    tasks = [(seal, form) for seal in trained for form in FORMS]
+    progress(f"fitting {len(FORMS)} forms to {len(trained)} seal(s) "
              f"({sum(map(len, trained.values()))} training records): {len(tasks)} fits on "
              f"{min(jobs, len(tasks))} process(es)")
-    fitted: dict[str, dict] = {seal: {} for seal in seals}
+    fitted: dict[str, dict] = {seal: {} for seal in trained}
     for done, (seal, form, result) in enumerate(_fits(tasks, trained, jobs), 1):
         fitted[seal][form] = result
         progress(f"[{done}/{len(tasks)}] {f'seal {seal}: ' if seal else ''}{form} fitted")
@@ -113,11 +132,11 @@ def _run(args) -> int:
         notes = [n for rec in records for n in rec.notes]
     for note in grouped_notes(notes):
         print(f"read: {note}", flush=True)
-    fitted = _fit_all(seals, args.split, args.jobs, progress)
-    results = [identify_seal(seal, preps, args.split, fitted[seal])
-               for seal, preps in seals.items()]
+    trained, refused = usable(seals, args.split)
+    fitted = _fit_all(trained, args.jobs, progress)
+    results = [identify_seal(seal, seals[seal], args.split, fitted[seal]) for seal in trained]
     drifts = {p.record.name: level_drift(p) for res in results for p in res.preps}
-    doc = to_json(results, args.split, notes, drifts)
+    doc = to_json(results, args.split, notes, drifts, refused)
     files: dict = {out / "friction.yaml": params_yaml(results[0], base, args.scale_to_piston),
                    out / "friction.json": fileio.to_json(doc) + "\n",
                    out / "report.html": html_report(results, doc, drifts)}
@@ -132,6 +151,8 @@ def _run(args) -> int:
     for form, s in doc["summary"].items():
         print(f"{form:16s} held-out median NRMSE {s['median_nrmse'] * 100:5.2f} %  "
               f"R^2 within direction {s['median_r2_within']:5.2f}")
+    for reason in refused.values():
+        print(f"not fitted: {reason}")
     for res in results:
         for warning in res.warnings(args.split):
             print(f"seal {res.seal or '(unnamed)'}: {warning}")

@@ -54,9 +54,12 @@ def summary_table(results: list[SealResult]) -> dict[str, dict[str, float]]:
 
 
 def to_json(results: list[SealResult], split: float, notes: list[str],
-            drifts: dict[str, dict[str, Drift]]) -> dict[str, Any]:
+            drifts: dict[str, dict[str, Drift]],
+            refused: dict[str, str] | None = None) -> dict[str, Any]:
     """The content of ``friction.json``; ``drifts`` gives each record's level drift by record
-    name and direction (:func:`~jetpipe_ros.identify.drift.level_drift`)."""
+    name and direction (:func:`~jetpipe_ros.identify.drift.level_drift`), ``refused`` why each
+    seal of the folder not fitted was not (seal -> reason)."""
+    refused = refused or {}
     seals = {}
     for res in results:
         records = {}
@@ -89,8 +92,10 @@ def to_json(results: list[SealResult], split: float, notes: list[str],
                       "friction; R^2; R^2 within each direction (exit v > 0, entry v < 0) and "
                       "pooled (r2_within)",
             "summary": summary_table(results), "seals": seals,
-            "notes": notes + [f"{f'seal {res.seal}: ' if res.seal else ''}{w}"
-                              for res in results for w in res.warnings(split)]}
+            "not_fitted": {seal or "seal": reason for seal, reason in refused.items()},
+            "notes": notes + [f"not fitted: {reason}" for reason in refused.values()]
+            + [f"{f'seal {res.seal}: ' if res.seal else ''}{w}"
+               for res in results for w in res.warnings(split)]}
 
 
 def centre(res: SealResult) -> float:
@@ -225,6 +230,8 @@ def html_report(results: list[SealResult], doc: dict[str, Any],
                      + (f"; {html.escape(drift)}" if drift else "")
                      + "".join(f"<br><b>not used:</b> {html.escape(w)}"
                                for w in res.warnings(doc["split"])) + "</li>")
+    parts += [f"<li><b>not fitted:</b> {html.escape(reason)}</li>"
+              for reason in doc["not_fitted"].values()]
     parts.append("</ul>")
     for res in results:
         name = res.seal or "seal"
