@@ -32,6 +32,7 @@ def write(path, cols):
 def test_lost_rows_are_filled_held_interpolated_and_marked(tmp_path):
     n, dt = 5000, 1e-3
     full = signals(np.arange(n) * dt)
+    full["f_load"] = -40.0 + 25.0 * np.arange(n) * dt  # a load released along a ramp [N]
     rng = np.random.default_rng(22)
     lost = np.sort(rng.choice(np.arange(1, n - 1), size=n // 100, replace=False))  # 1 %
     kept = np.setdiff1d(np.arange(n), lost)
@@ -47,6 +48,9 @@ def test_lost_rows_are_filled_held_interpolated_and_marked(tmp_path):
     assert not exp.valid[lost].any()
     before = kept[np.searchsorted(kept, lost) - 1]  # the last row kept before each lost one
     np.testing.assert_array_equal(exp.u[lost], full["u"][before])  # zero-order hold
+    # The load, a force continuous in time, interpolated: exact on its ramp (held, it would be
+    # off by 25 N/s over each gap).
+    np.testing.assert_allclose(exp.f_load, full["f_load"], rtol=0, atol=1e-9)
     for c in ("u", "y", "p1", "p2"):
         np.testing.assert_array_equal(getattr(exp, c)[kept], full[c][kept])
     after = kept[np.searchsorted(kept, lost)]

@@ -19,15 +19,19 @@ what it did about it (the experiment's notes), instead of refusing:
   frequency, and of at most 6 degrees for signals below a tenth of it, which is where the
   model is fitted). Jitter below 1 % of a step is rounding of the written stamps and is
   snapped without a note.
-* **Lost rows** (slots with no stamp): filled. The command ``u`` and the load ``f_load`` are
-  held at the previous row's value (zero-order hold), because that is what the valve saw: the
-  logger lost the row, not the controller's output, which stays in force until the next one.
-  The measurements (``y``, ``p1``, ``p2``, ``v``) are interpolated linearly so that the
-  signals stay continuous (a model started from them, a filter run over them, see no step),
-  and the mask ``valid`` marks them False so that comparisons leave them out.
+* **Lost rows** (slots with no stamp): filled. The command ``u`` is held at the previous
+  row's value (zero-order hold), because that is what the valve saw: the logger lost the row,
+  not the controller's output, which stays in force until the next one. The load ``f_load``
+  is a force on the piston, continuous in time (a weight released, a spring, a load cell's
+  reading): interpolated linearly (the paper's friction tests release their load along a
+  ramp; held over gaps of 30-79 ms, it had replayed their positions 60-120 um off, where the
+  clean records' are 15 um). The measurements (``y``, ``p1``, ``p2``, ``v``) are
+  interpolated linearly so that the signals stay continuous (a model started from them, a
+  filter run over them, see no step), and the mask ``valid`` marks them False so that
+  comparisons leave them out.
 * **Irregular stamps** (beyond a third of a step from any regular grid, or two stamps in one
-  slot): resampled at the median step from the first stamp on; measurements interpolated
-  linearly, the command and the load held (the value in force at each grid time). Every row
+  slot): resampled at the median step from the first stamp on; measurements and the load
+  interpolated linearly, the command held (the value in force at each grid time). Every row
   is then valid: no row was lost, the samples were only taken at other times.
 
 Refused (DatasetError naming the file, the line and column ``t``): time not strictly
@@ -59,7 +63,7 @@ MAX_GROWTH = 2.0
 COHERENT_STAMPS = 256
 STEP_SEARCH = 0.05
 #: Columns held between samples (zero-order hold); every other column is interpolated.
-HELD = ("u", "f_load")
+HELD = ("u",)
 #: A live stream's sample time (the twin's, the recorder's): the median of its latest
 #: :data:`STREAM_INTERVALS` stamp intervals, once there are :data:`MIN_INTERVALS`.
 STREAM_INTERVALS = 200
