@@ -358,16 +358,44 @@ def test_a_logger_a_row_early_is_found_by_the_controller_and_moved_back(tmp_path
 def test_a_lossy_logger_is_said_and_identifies_as_the_clean_record(tmp_path, capsys):
     """The valve sweep with 1 % of its rows lost and its stamps jittered by +-0.3 samples, as
     the self-check's ``lossy`` logger writes it (written apart from the reader): the summary
-    (the parameter file's header) says what the reader did and that the procedures read the
-    filled rows as measured, and the valve's delay is the clean record's within 0.05 ms (its
+    (the parameter file's header) says what the reader did and that the procedures fit the
+    measured rows only, and the valve's delay is the clean record's within 0.05 ms (its
     scatter over seeds is 0.08 ms)."""
     clean = syn.record(NOISY, [syn.valve_sweep()], tmp_path / "clean").root
     delays, said = _valve_as_logged(clean, "lossy", "lossy", 5)
     assert "rows missing" not in said["clean"] and "filled" not in said["clean"]
     assert "rows missing" in said["lossy"] and "snapped to the grid" in said["lossy"]
-    assert "read the rows filled over a logger's gaps as measured" in said["lossy"]
+    assert "the procedures fit the measured rows only" in said["lossy"]
     assert delays["lossy"] == pytest.approx(delays["clean"], abs=5e-5)
     assert capsys.readouterr().err == ""  # --quiet: no progress lines
+
+
+def test_a_sweep_with_long_gaps_gives_the_clean_records_valve(tmp_path):
+    """The valve sweep with a block of 30-79 rows (ms) lost in every 250, a fifth of the record
+    (written here, apart from the reader, which fills the gaps): identified from the measured
+    rows only (67 % of the rows compared: the gaps, the derivative windows reaching them, the
+    30 ms after each left out), the delay is the clean record's within 0.1 ms (its scatter
+    over seeds: 0.08 ms) and the back-EMF constant within 10 % (7 % seen: the rows left out
+    also spread the whitened residual's spectrum; its scatter over seeds is 3 %). Read as
+    measured, the flow differentiated across the lines drawn over the gaps and the valve fed
+    the held commands had put the delay at 0."""
+    clean = syn.record(NOISY, [syn.valve_sweep()], tmp_path / "clean").root
+    gappy = tmp_path / "gappy"
+    shutil.copytree(clean, gappy)
+    rng = np.random.default_rng(7)
+    for path in gappy.glob("*.csv"):
+        head, *rows = path.read_text().splitlines()
+        keep = np.ones(len(rows), dtype=bool)
+        for start in range(150, len(rows) - 100, 250):
+            keep[start + rng.integers(0, 50):start + 80] = False
+        assert 0.15 < 1.0 - keep.mean() < 0.25
+        path.write_text("\n".join([head, *(r for r, k in zip(rows, keep) if k)]) + "\n")
+    start = START.with_values({"flow.coefficients": TRUTH["flow.coefficients"]})
+    got = {name: identify(read_dataset(root), start, procedures=["valve"]).params
+           for name, root in (("clean", clean), ("gappy", gappy))}
+    assert got["gappy"]["valve.delay"] == pytest.approx(got["clean"]["valve.delay"], abs=1e-4)
+    assert got["gappy"]["valve.back_emf_constant"] == pytest.approx(
+        got["clean"]["valve.back_emf_constant"], rel=0.10)
 
 
 def test_no_usable_experiment_names_every_procedure(tmp_path, capsys):

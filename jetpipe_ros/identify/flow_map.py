@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from jetpipe_ros.dataset import DatasetError
-from jetpipe_ros.identify.differentiate import derivative
+from jetpipe_ros.identify.differentiate import clear_of_gaps, derivative
 from jetpipe_ros.identify.experiments import Recording
 from jetpipe_ros.model.chamber import chamber_volumes
 from jetpipe_ros.model.flow import (KG_PER_G, TABLE_P, TABLE_SIZE, TABLE_U, flow_matrix,
@@ -98,11 +98,13 @@ def held_mask(u: np.ndarray, dt: float, settle: float, tail: float) -> np.ndarra
 
 
 def flow_samples(rec: Recording, params: Mapping[str, Any]) -> FlowSamples:
-    """Eq. 7 samples of both chambers of one locked charge/discharge test."""
+    """Eq. 7 samples of both chambers of one locked charge/discharge test (none where the
+    derivative's window reaches over a logger's gap)."""
     exp = rec.experiment
     dt = exp.dt
     c1, c2 = chamber_capacities(params, float(np.mean(exp.y)))
-    keep = held_mask(exp.u, dt, SETTLE, WINDOW / 2 + 2 * dt)
+    keep = held_mask(exp.u, dt, SETTLE, WINDOW / 2 + 2 * dt) \
+        & clear_of_gaps(exp.valid, exp.t.size, dt, WINDOW)
     us, ps, qs = [], [], []
     for sign, p, cap in ((1.0, exp.p1, c1), (-1.0, exp.p2, c2)):
         q = cap * derivative(p, dt, WINDOW)

@@ -47,7 +47,7 @@ import numpy as np
 from scipy import optimize, signal
 
 from jetpipe_ros.dataset import DatasetError
-from jetpipe_ros.identify.differentiate import derivative, window_samples
+from jetpipe_ros.identify.differentiate import clear_of_gaps, derivative, window_samples
 from jetpipe_ros.identify.experiments import Recording
 from jetpipe_ros.model import ModelParams, simulate
 from jetpipe_ros.model.friction import plane_basis, sliding_friction
@@ -106,7 +106,8 @@ class FrictionResult:
 
 def friction_force(rec: Recording, params: Mapping[str, Any]
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(velocity [m/s], Eq. 19 friction force [N], sliding mask) of one friction test."""
+    """(velocity [m/s], Eq. 19 friction force [N], sliding mask) of one friction test; the
+    mask leaves out the samples whose derivative window reaches over a logger's gap."""
     exp = rec.experiment
     dt = exp.dt
     n = window_samples(WINDOW, dt)
@@ -131,7 +132,7 @@ def friction_force(rec: Recording, params: Mapping[str, Any]
     start = still[-1] + 1 if still.size else 0
     sliding = np.zeros(exp.t.size, dtype=bool)
     sliding[start:stop] = True
-    return v, force, sliding
+    return v, force, sliding & clear_of_gaps(exp.valid, exp.t.size, dt, WINDOW)
 
 
 def arrival(rec: Recording, params: Mapping[str, Any]) -> int:
@@ -160,24 +161,27 @@ def refine(rec: Recording, phase: str, start: np.ndarray, breakaway: float,
            params: ModelParams) -> tuple[np.ndarray, np.ndarray, float]:
     """Output-error fit of one test's Eq. 18 magnitudes (F_S [N], v_s [m/s], F_v [N s/m],
     F_C [N], all positive) from ``start``: the rig replayed through the model with constant
-    planes of ``phase`` set to them, fitted to the measured position from the start of the
-    record to the far end stop. The fit also starts from ``breakaway`` [N] (the applied force
-    when the piston began to slide) for F_S and from each of STRIBECK_STARTS for v_s, and keeps
-    the best: a start whose F_S the piston never reaches, or whose v_s lies in another basin,
-    ends where the cost is flat. Returns the fitted magnitudes, their standard errors (the
-    residual's variance times the inverse Gauss-Newton matrix: the residual is the position
-    sensor's white noise once the fit is right) and the position RMS [m]."""
+    planes of ``phase`` set to them, fitted to the measured position (no row filled over a
+    logger's gap) from the start of the record to the far end stop. The fit also starts from
+    ``breakaway`` [N] (the applied force when the piston began to slide) for F_S and from each
+    of STRIBECK_STARTS for v_s, and keeps the best: a start whose F_S the piston never
+    reaches, or whose v_s lies in another basin, ends where the cost is flat. Returns the
+    fitted magnitudes, their standard errors (the residual's variance times the inverse
+    Gauss-Newton matrix: the residual is the position sensor's white noise once the fit is
+    right) and the position RMS [m]."""
     exp = rec.experiment
     test_rig = rig(rec, params)
     s = 1.0 if phase == "exit" else -1.0
     load = exp.f_load if exp.f_load is not None else rec.entry.load_force
-    stop = arrival(rec, params)
+    compared = np.arange(exp.t.size) < arrival(rec, params)
+    if exp.valid is not None:
+        compared &= exp.valid
 
     def residual(x: np.ndarray) -> np.ndarray:
         signed = (s * x[0], s * x[1], x[2], s * x[3])
         trial = test_rig.with_values({f"friction.{phase}.{q}": [v, 0.0, 0.0]
                                       for q, v in zip(QUANTITIES, signed)})
-        return simulate(trial, exp.u, load).y[:stop] - exp.y[:stop]
+        return simulate(trial, exp.u, load).y[compared] - exp.y[compared]
 
     lower, upper = np.array([1.0, 1e-4, 0.0, 1.0]), np.array([1e4, 0.5, 1e5, 1e4])
     x0 = np.clip(start, lower, upper)

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from jetpipe_ros.dataset import DatasetError
-from jetpipe_ros.identify.differentiate import derivative
+from jetpipe_ros.identify.differentiate import clear_of_gaps, derivative
 from jetpipe_ros.identify.experiments import Recording
 from jetpipe_ros.identify.flow_map import P_FLOOR_BAR, chamber_capacities, invert
 from jetpipe_ros.model.valve import U_EQ_MAX, U_EQ_MIN
@@ -70,15 +70,17 @@ class HysteresisResult:
 
 def loop_samples(rec: Recording, params: Mapping[str, Any], coefficients: Sequence[float]
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(u, u_eq, rising) of one ramp test, at the samples where a chamber resolves u_eq."""
+    """(u, u_eq, rising) of one ramp test, at the samples where a chamber resolves u_eq (and
+    the derivative's window holds no row filled over a logger's gap)."""
     exp = rec.experiment
     caps = chamber_capacities(params, float(np.mean(exp.y)))
     du = np.gradient(exp.u)
+    clear = clear_of_gaps(exp.valid, exp.t.size, exp.dt, WINDOW)
     us, ueqs, rising = [], [], []
     for sign, p, cap in zip((1.0, -1.0), (exp.p1, exp.p2), caps):
         q = cap * derivative(p, exp.dt, WINDOW)
         u_eq = sign * invert(coefficients, q, p * 1e-5, sign * exp.u)
-        ok = ((p * 1e-5 > P_FLOOR_BAR + 0.05) & (np.abs(du) > 1e-9)
+        ok = (clear & (p * 1e-5 > P_FLOOR_BAR + 0.05) & (np.abs(du) > 1e-9)
               & (u_eq > U_EQ_MIN + 0.05) & (u_eq < U_EQ_MAX - 0.05))
         us.append(exp.u[ok])
         ueqs.append(u_eq[ok])

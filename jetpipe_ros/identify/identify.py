@@ -143,9 +143,11 @@ def check(rec: Recording, params: dict[str, ModelParams]) -> Replay:
 
     Validation runs replay the command (and load) from the model's initial state; friction
     tests replay the rig: regulated pressures at the measured means, the piston at its
-    measured start, the measured load (the paper's check of Fig. 26-28).
+    measured start, the measured load (the paper's check of Fig. 26-28). The errors are taken
+    over the measured rows (none filled over a logger's gap).
     """
     exp = rec.experiment
+    measured = exp.valid if exp.valid is not None else slice(None)
     sims, rms_y, rms_p = {}, {}, {}
     for label, p in params.items():
         if rec.kind == kinds.FRICTION:
@@ -154,7 +156,7 @@ def check(rec: Recording, params: dict[str, ModelParams]) -> Replay:
         else:
             trace = replay(p, exp, locked=rec.entry.locked)
         sims[label] = trace.y
-        rms_y[label] = float(np.sqrt(np.mean((trace.y - exp.y) ** 2)))
+        rms_y[label] = float(np.sqrt(np.mean((trace.y - exp.y)[measured] ** 2)))
         rms_p[label] = float(np.sqrt(np.mean(((trace.p1 - exp.p1) ** 2
-                                              + (trace.p2 - exp.p2) ** 2) / 2.0)))
+                                              + (trace.p2 - exp.p2) ** 2)[measured] / 2.0)))
     return Replay(rec.name, rec.kind, exp.t, exp.y, sims, rms_y, rms_p)

@@ -49,7 +49,7 @@ from scipy import optimize, signal
 
 from jetpipe_ros.dataset import DatasetError
 from jetpipe_ros.dataset.friction_rig import RigRecord
-from jetpipe_ros.identify.differentiate import derivative, window_samples
+from jetpipe_ros.identify.differentiate import clear_of_gaps, derivative, window_samples
 from jetpipe_ros.identify.experiments import Recording
 from jetpipe_ros.identify.friction import WINDOW as TEST_WINDOW
 from jetpipe_ros.identify.friction import friction_force
@@ -271,7 +271,7 @@ def prepare(record: RigRecord, split: float = 0.5) -> Prepared:
         raise DatasetError(f"{record.file}: {record.t.size} samples, need at least {4 * n} "
                            f"(four {window:g} s velocity windows)")
     v = derivative(record.x, record.dt, window)
-    clean = np.convolve((~record.valid).astype(float), np.ones(n), "same") == 0.0
+    clean = clear_of_gaps(record.valid, record.t.size, record.dt, window)
     clean[:n] = clean[-n:] = False
     moving = clean & (np.abs(v) > MIN_SPEED)
     check_dissipates(record, v, moving)

@@ -71,9 +71,10 @@ def _run(args) -> int:
     ident = identify(data, base, chosen, required, progress)
     ident.notes.extend(grouped_notes(data.notes) + said)
     if any(exp.valid is not None and not exp.valid.all() for _, exp in data):
-        ident.notes.append("the procedures read the rows filled over a logger's gaps as "
-                           "measured (1 % of the identification campaign's rows lost moved "
-                           "its parameters by less than their noise: docs/identification.md)")
+        ident.notes.append("the procedures fit the measured rows only: not the rows filled over "
+                           "a logger's gaps nor the derivatives whose window reaches them (the "
+                           "valve's fit neither the 30 ms after a gap of two rows or more): "
+                           "docs/identification.md")
     text = summary(ident)
     header = "".join(f"# {line}\n" for line in text.splitlines())
     fileio.write_files({out: header + ident.params.to_ros_yaml(), report: html_report(ident)})
