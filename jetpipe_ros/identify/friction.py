@@ -122,7 +122,7 @@ def friction_force(rec: Recording, params: Mapping[str, Any]
         load = np.full(exp.t.size, rec.entry.load_force)
     force = params["chamber.piston_area"] * (p1 - p2) - load - params["mechanics.mass"] * a
     # Up to the first arrival at the far end stop, less half a window of smeared impact.
-    direction = 1.0 if np.mean(exp.p1) > np.mean(exp.p2) else -1.0
+    direction = sliding_direction(rec)
     stop = arrival(rec, params)
     stop = stop - n // 2 if stop < exp.t.size else stop
     moving = direction * v[:stop] > MIN_SPEED
@@ -135,11 +135,18 @@ def friction_force(rec: Recording, params: Mapping[str, Any]
     return v, force, sliding & clear_of_gaps(exp.valid, exp.t.size, dt, WINDOW)
 
 
+def sliding_direction(rec: Recording) -> float:
+    """+1 when friction test ``rec`` slides towards +y (chamber 1 the higher pressure on
+    average: the exit phase), else -1."""
+    exp = rec.experiment
+    return 1.0 if np.mean(exp.p1) > np.mean(exp.p2) else -1.0
+
+
 def arrival(rec: Recording, params: Mapping[str, Any]) -> int:
     """Index of the first sample of a friction test within END_MARGIN of the end stop it
     slides towards (the record's length if it never gets there)."""
     exp = rec.experiment
-    direction = 1.0 if np.mean(exp.p1) > np.mean(exp.p2) else -1.0
+    direction = sliding_direction(rec)
     arrived = np.flatnonzero(direction * exp.y > 0.5 * params["mechanics.stroke"] - END_MARGIN)
     return int(arrived[0]) if arrived.size else exp.t.size
 
@@ -203,8 +210,8 @@ def fit_test(rec: Recording, params: ModelParams) -> FrictionTest:
     """Fit Eq. 18 to one friction test; raise DatasetError if it cannot separate the terms."""
     exp = rec.experiment
     p1_bar, p2_bar = float(np.mean(exp.p1)) * 1e-5, float(np.mean(exp.p2)) * 1e-5
-    phase = "exit" if p1_bar > p2_bar else "entry"
-    s = 1.0 if phase == "exit" else -1.0
+    s = sliding_direction(rec)
+    phase = "exit" if s > 0 else "entry"
     v, force, sliding = friction_force(rec, params)
     speed, mag = s * v[sliding], s * force[sliding]
     if speed.size < MIN_SAMPLES or speed.max() < MIN_SPEED_RATIO * speed.min():
