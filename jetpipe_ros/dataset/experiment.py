@@ -66,6 +66,12 @@ class Experiment:
     notes: list[str] = field(default_factory=list)
 
     @property
+    def measured(self) -> np.ndarray:
+        """True at each measured row, False where a row was filled in (:attr:`valid`; every
+        row True when that is None)."""
+        return self.valid if self.valid is not None else np.ones(self.t.size, dtype=bool)
+
+    @property
     def dt(self) -> float:
         """Median sample interval [s]."""
         return float(np.median(np.diff(self.t))) if self.t.size > 1 else math.nan

@@ -43,17 +43,14 @@ def derivative(x: np.ndarray, dt: float, window: float, order: int = 1) -> np.nd
                                 delta=dt, mode="interp")
 
 
-def clear_of_gaps(valid: np.ndarray | None, size: int, dt: float, window: float
-                  ) -> np.ndarray:
-    """True at the rows of a record of ``size`` rows whose :func:`derivative` window
-    (``window`` [s] at ``dt`` [s], centred) holds no row filled over a logger's gap: ``valid``
-    marks the measured rows (None: every row was measured). A derivative whose window reaches
-    over a gap differentiates the line drawn across it (a kink at each end: a 30 ms gap in a
-    locked charge gives a flow that steps), not the measurement."""
-    if valid is None:
-        return np.ones(size, dtype=bool)
+def clear_of_gaps(measured: np.ndarray, dt: float, window: float) -> np.ndarray:
+    """True at the rows whose :func:`derivative` window (``window`` [s] at ``dt`` [s],
+    centred) holds no row filled over a logger's gap: ``measured`` marks the measured rows. A
+    derivative whose window reaches over a gap differentiates the line drawn across it (a kink
+    at each end: a 30 ms gap in a locked charge gives a flow that steps), not the
+    measurement."""
     n = window_samples(window, dt)
-    return np.convolve((~valid).astype(float), np.ones(n), "same") == 0.0
+    return np.convolve((~measured).astype(float), np.ones(n), "same") == 0.0
 
 
 def derivative_gain(frequency: np.ndarray, dt: float, window: float) -> np.ndarray:

@@ -104,7 +104,7 @@ def flow_samples(rec: Recording, params: Mapping[str, Any]) -> FlowSamples:
     dt = exp.dt
     c1, c2 = chamber_capacities(params, float(np.mean(exp.y)))
     keep = held_mask(exp.u, dt, SETTLE, WINDOW / 2 + 2 * dt) \
-        & clear_of_gaps(exp.valid, exp.t.size, dt, WINDOW)
+        & clear_of_gaps(exp.measured, dt, WINDOW)
     us, ps, qs = [], [], []
     for sign, p, cap in ((1.0, exp.p1, c1), (-1.0, exp.p2, c2)):
         q = cap * derivative(p, dt, WINDOW)

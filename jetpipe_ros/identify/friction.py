@@ -132,7 +132,7 @@ def friction_force(rec: Recording, params: Mapping[str, Any]
     start = still[-1] + 1 if still.size else 0
     sliding = np.zeros(exp.t.size, dtype=bool)
     sliding[start:stop] = True
-    return v, force, sliding & clear_of_gaps(exp.valid, exp.t.size, dt, WINDOW)
+    return v, force, sliding & clear_of_gaps(exp.measured, dt, WINDOW)
 
 
 def sliding_direction(rec: Recording) -> float:
@@ -180,9 +180,7 @@ def refine(rec: Recording, phase: str, start: np.ndarray, breakaway: float,
     test_rig = rig(rec, params)
     s = 1.0 if phase == "exit" else -1.0
     load = exp.f_load if exp.f_load is not None else rec.entry.load_force
-    compared = np.arange(exp.t.size) < arrival(rec, params)
-    if exp.valid is not None:
-        compared &= exp.valid
+    compared = (np.arange(exp.t.size) < arrival(rec, params)) & exp.measured
 
     def residual(x: np.ndarray) -> np.ndarray:
         signed = (s * x[0], s * x[1], x[2], s * x[3])

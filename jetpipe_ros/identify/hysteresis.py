@@ -75,7 +75,7 @@ def loop_samples(rec: Recording, params: Mapping[str, Any], coefficients: Sequen
     exp = rec.experiment
     caps = chamber_capacities(params, float(np.mean(exp.y)))
     du = np.gradient(exp.u)
-    clear = clear_of_gaps(exp.valid, exp.t.size, exp.dt, WINDOW)
+    clear = clear_of_gaps(exp.measured, exp.dt, WINDOW)
     us, ueqs, rising = [], [], []
     for sign, p, cap in zip((1.0, -1.0), (exp.p1, exp.p2), caps):
         q = cap * derivative(p, exp.dt, WINDOW)

@@ -147,7 +147,7 @@ def check(rec: Recording, params: dict[str, ModelParams]) -> Replay:
     over the measured rows (none filled over a logger's gap).
     """
     exp = rec.experiment
-    measured = exp.valid if exp.valid is not None else slice(None)
+    measured = exp.measured
     sims, rms_y, rms_p = {}, {}, {}
     for label, p in params.items():
         if rec.kind == kinds.FRICTION:

@@ -271,7 +271,7 @@ def prepare(record: RigRecord, split: float = 0.5) -> Prepared:
         raise DatasetError(f"{record.file}: {record.t.size} samples, need at least {4 * n} "
                            f"(four {window:g} s velocity windows)")
     v = derivative(record.x, record.dt, window)
-    clean = clear_of_gaps(record.valid, record.t.size, record.dt, window)
+    clean = clear_of_gaps(record.valid, record.dt, window)
     clean[:n] = clean[-n:] = False
     moving = clean & (np.abs(v) > MIN_SPEED)
     check_dissipates(record, v, moving)

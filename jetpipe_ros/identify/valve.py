@@ -163,16 +163,14 @@ def seen_flow(flow: np.ndarray, fine: int, dt: float) -> np.ndarray:
     return derivative(charge, dt, WINDOW)
 
 
-def after_gaps(valid: np.ndarray | None, size: int, rows: int) -> np.ndarray:
-    """True at the rows of a record of ``size`` rows filled over a logger's gap (``valid``
-    False) and at the ``rows`` rows after each (``valid`` None: every row measured)."""
-    if valid is None:
-        return np.zeros(size, dtype=bool)
-    return np.convolve((~valid).astype(float), np.ones(rows + 1), "full")[:size] > 0
+def after_gaps(measured: np.ndarray, rows: int) -> np.ndarray:
+    """True at the rows filled over a logger's gap (``measured`` False) and at the ``rows``
+    rows after each."""
+    return np.convolve((~measured).astype(float), np.ones(rows + 1), "full")[:measured.size] > 0
 
 
-def bridged(valid: np.ndarray | None) -> np.ndarray | None:
-    """``valid`` with each single lost row between two measured ones counted as measured.
+def bridged(measured: np.ndarray) -> np.ndarray:
+    """``measured`` with each single lost row between two measured ones counted as measured.
 
     Its line between its neighbours misses a sine of frequency f by (2 pi f dt)^2 / 8 of its
     amplitude, 2.4 % at 70 Hz (the sweep's top) and 1 kHz: under the pressure sensors' noise
@@ -181,10 +179,8 @@ def bridged(valid: np.ndarray | None) -> np.ndarray | None:
     whitened), so every row it leaves out also spreads the residual's spectrum: leaving out
     the 1 % of single rows a non-real-time logger drops, with their windows, had moved the
     delay by 0.27 ms (its scatter over seeds: 0.08 ms)."""
-    if valid is None:
-        return None
-    lone = ~valid & np.r_[False, valid[:-1]] & np.r_[valid[1:], False]
-    return valid | lone
+    lone = ~measured & np.r_[False, measured[:-1]] & np.r_[measured[1:], False]
+    return measured | lone
 
 
 def band_response(u: np.ndarray, u_eq: np.ndarray, dt: float
@@ -231,14 +227,15 @@ def identify_valve(recs: list[Recording], params: ModelParams,
     fine = int(np.ceil(dt / FINE - 1e-9))
     # Per chamber: command, sign, pressure [bar] on the fine grid, measured flow [kg/s], weights,
     # and the samples compared: after the lead-in, the derivative's window clear of a
-    # logger's gaps (a flow differentiated across the line drawn over a gap is not measured).
+    # logger's gaps (a flow differentiated across the line drawn over a gap is not measured),
+    # and AFTER_GAP past each gap of two rows or more.
     chambers = []
     for r in recs:
         exp = r.experiment
         on_fine = np.arange(exp.u.size * fine) / fine
-        measured = bridged(exp.valid)
-        compared = clear_of_gaps(measured, exp.t.size, dt, WINDOW) & ~after_gaps(
-            measured, exp.t.size, round(AFTER_GAP / dt))
+        measured = bridged(exp.measured)
+        compared = clear_of_gaps(measured, dt, WINDOW) & ~after_gaps(measured,
+                                                                   round(AFTER_GAP / dt))
         compared[:skip] = False
         for sign, p, cap in zip((1.0, -1.0), (exp.p1, exp.p2),
                                 chamber_capacities(params, float(np.mean(exp.y)))):

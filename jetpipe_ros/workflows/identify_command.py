@@ -70,7 +70,7 @@ def _run(args) -> int:
     data, said = read_conventions(data, base)
     ident = identify(data, base, chosen, required, progress)
     ident.notes.extend(grouped_notes(data.notes) + said)
-    if any(exp.valid is not None and not exp.valid.all() for _, exp in data):
+    if any(not exp.measured.all() for _, exp in data):
         ident.notes.append("the procedures fit the measured rows only: not the rows filled over "
                            "a logger's gaps nor the derivatives whose window reaches them (the "
                            "valve's fit neither the 30 ms after a gap of two rows or more): "
