@@ -1,6 +1,8 @@
 """Offline simulation speed: real-time factor, per-sample step cost, one diagnosis evaluation.
 
-Times the batch simulator on a 60 s rich command (real-time factor = simulated time / time taken),
+Times the first compile of the kernel from an empty numba cache (what a fresh install pays once:
+a node's step, then a replay with a load per sample),
+the batch simulator on a 60 s rich command (real-time factor = simulated time / time taken),
 ``Actuator.step`` (the node's path), and one evaluation of a diagnosis fit's objective:
 ``predict_all`` over the training experiments of the default campaign's dataset (simulated with
 sensor noise), with where its time goes (the kernel, the parameters compiled for it, the rest of
@@ -38,7 +40,11 @@ RTF_ROWS = [("nominal, 4 sub-steps (default)", {}),
             ("LuGre + lag + hysteresis + noise",
              {"effects.friction_dynamics.enabled": True, "effects.valve_lag.enabled": True,
               "effects.valve_hysteresis.enabled": True, "sensors.noise": True}),
-            ("nominal with a flow-map correction table", {"flow.table": [0.1] * 130})]
+            ("nominal with a flow-map correction table", {"flow.table": [0.1] * 130}),
+            ("valve delay, hose form",
+             {"effects.valve_delay.enabled": True, "effects.valve_delay.form": "hose"}),
+            ("valve lag, port form",
+             {"effects.valve_lag.enabled": True, "effects.valve_lag.form": "port"})]
 PARTS = {"kernel": "kernel.advance (the compiled integration)",
          "constants": "build_constants (valve discretisation included)",
          "actuator": "the rest of Actuator(...) (random generator, state)",
@@ -68,8 +74,15 @@ def measure(seconds: float, repeats: int, dataset: Path) -> dict:
     """All figures of the installed package (whatever ``jetpipe_ros`` imports as)."""
     import jetpipe_ros
     from jetpipe_ros.model import Actuator, ModelParams
+    from jetpipe_ros.model.actuator import compile_kernel
 
     u = rich_command(seconds)
+    # NUMBA_CACHE_DIR is empty: what a fresh install pays once, for a node's step and for a
+    # replay with a load per sample (what identification and the diagnosis run)
+    start = time.perf_counter()
+    compile_kernel()
+    Actuator(ModelParams()).run(u[:10], np.zeros(10))
+    cold = time.perf_counter() - start
     rtf = {}
     for label, changes in RTF_ROWS:
         try:
@@ -93,7 +106,8 @@ def measure(seconds: float, repeats: int, dataset: Path) -> dict:
         for k in range(20_000):
             act.step(u[k % u.size])
         per_step.append((time.thread_time() - start) / 20_000)
-    return {"package": jetpipe_ros.__file__, "seconds": seconds, "rtf_time": rtf,
+    return {"package": jetpipe_ros.__file__, "seconds": seconds, "cold_compile": cold,
+            "rtf_time": rtf,
             "step": statistics.median(per_step), **evaluation(dataset, 3 * repeats)}
 
 
@@ -144,12 +158,15 @@ def evaluation(dataset: Path, repeats: int) -> dict:
 def in_subprocess(package_root: Path, args: argparse.Namespace, dataset: Path) -> dict:
     """:func:`measure` on the package under ``package_root``, in a fresh single-threaded
     subprocess: before and after alike, so neither inherits the other's process state (the
-    dataset's objects for the garbage collector, BLAS threads still spinning)."""
-    env = {**os.environ, "PYTHONPATH": str(package_root), "OPENBLAS_NUM_THREADS": "1",
-           "OMP_NUM_THREADS": "1"}
-    out = subprocess.run([sys.executable, __file__, "--json", "--seconds", str(args.seconds),
-                          "--repeats", str(args.repeats), "--dataset", str(dataset)],
-                         check=True, capture_output=True, text=True, env=env).stdout
+    dataset's objects for the garbage collector, BLAS threads still spinning, numba's cache:
+    each starts from an empty one, so the first compile is timed cold)."""
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**os.environ, "PYTHONPATH": str(package_root), "OPENBLAS_NUM_THREADS": "1",
+               "OMP_NUM_THREADS": "1", "NUMBA_CACHE_DIR": cache}
+        out = subprocess.run([sys.executable, __file__, "--json", "--seconds",
+                              str(args.seconds), "--repeats", str(args.repeats), "--dataset",
+                              str(dataset)], check=True, capture_output=True, text=True,
+                             env=env).stdout
     figures = json.loads(out)
     if not figures["package"].startswith(str(package_root)):
         raise RuntimeError(f"imported {figures['package']}, not the one in {package_root}")
@@ -201,6 +218,9 @@ def table(now: dict, before: dict | None, rev: str | None) -> str:
                          lambda x: f"{x:,.0f}", higher_is_better=True))
     lines.append(row("`Actuator.step` (node path), per sample", lambda f: f["step"] * 1e6,
                      lambda x: f"{x:.1f} us"))
+    lines.append(row("first compile: a step, then a run with a load per sample, empty numba "
+                     "cache (wall)",
+                     lambda f: f.get("cold_compile"), lambda x: f"{x:.1f} s"))
     lines += ["", f"| one diagnosis evaluation: `predict_all` on the {now['experiments']} "
                   f"training experiments ({now['train_seconds']:.1f} s at 1 kHz) {head}", rule,
               row("CPU time (median)", lambda f: f["evaluation"]["total"] * 1e3,

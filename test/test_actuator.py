@@ -6,7 +6,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy import optimize
 
-from jetpipe_ros.model import Actuator, ModelParams, simulate
+from jetpipe_ros.model import Actuator, ModelParams, kernel, simulate
 from jetpipe_ros.model.flow import P_ATM, P_SUPPLY_NOMINAL, flow_polynomial, mass_flow
 from jetpipe_ros.model.friction import friction_parameters
 from jetpipe_ros.model.params import FLOW_COEFFICIENTS
@@ -204,3 +204,20 @@ def test_a_record_at_another_rate_is_simulated_with_the_models_own_sub_step():
     coarse = simulate(p.with_values({"integration.sample_time": 5e-3}), u200)
     assert np.max(np.abs(coarse.y - fine.y[::5])) > 2e-5
     assert np.max(np.abs(coarse.p1 - fine.p1[::5])) > 500.0
+
+
+def test_every_run_uses_the_one_compiled_kernel():
+    """A scalar load, a load per sample, read-only arrays (a broadcast load, a memory-mapped
+    record) and the node's step all reach one compiled specialization of the kernel: another
+    array type would compile the whole kernel again (40-50 s on a fresh install)."""
+    act = Actuator(P)
+    act.step(0.0)
+    u = np.full(50, 0.5)
+    act.run(u)
+    act.run(u, np.linspace(0.0, 20.0, 50))
+    frozen = np.broadcast_to(np.array([0.5]), (50,))
+    drive = np.full((50, kernel.N_DRIVE), np.nan)
+    drive.setflags(write=False)
+    act.run(frozen, np.broadcast_to(np.array([5.0]), (50,)), drive)
+    assert len(kernel.advance.signatures) == 1
+    assert not any(arg.mutable is False for arg in kernel.advance.signatures[0][1:])

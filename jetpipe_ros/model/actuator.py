@@ -277,14 +277,14 @@ class Actuator:
         ``drive`` (n, 4) optionally prescribes per sample the position [m] and velocity [m/s]
         and/or the two chamber pressures [Pa]; NaN entries leave that part simulated.
         """
-        u = np.ascontiguousarray(u, dtype=float)
+        u = _kernel_array(u)
         if not np.all(np.isfinite(u)):
             raise ValueError("valve command contains NaN or infinite values")
-        fl = np.ascontiguousarray(np.broadcast_to(f_load, u.shape), dtype=float)
+        fl = _kernel_array(np.broadcast_to(f_load, u.shape))
         if drive is None:
             drive = self._no_drive
         else:
-            drive = np.ascontiguousarray(drive, dtype=float)
+            drive = _kernel_array(drive)
             if drive.shape != (u.shape[0], kernel.N_DRIVE):
                 raise ValueError(f"drive must have shape ({u.shape[0]}, {kernel.N_DRIVE}), "
                                  f"got {drive.shape}")
@@ -292,6 +292,15 @@ class Actuator:
         kernel.advance(self.constants, self.state, self.ring, u, fl, drive,
                        self._noise(len(u)), out)
         return out
+
+
+def _kernel_array(values: Any) -> np.ndarray:
+    """``values`` as the kernel takes every array: float, C-contiguous and writable. Numba
+    compiles a kernel per array type, and a read-only array (a broadcast load, a memory-mapped
+    record) is another type: without the copy a first run with a load array compiled the whole
+    kernel a second time (40-50 s on a fresh install)."""
+    array = np.ascontiguousarray(values, dtype=float)
+    return array if array.flags.writeable else array.copy()
 
 
 def compile_kernel() -> float:
