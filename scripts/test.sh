@@ -21,6 +21,9 @@ WANT=$(cat requirements.txt "$ROS_REQ" setup.py | sha256sum | cut -d' ' -f1)
 # machine). Arguments go to both; a stage that selects nothing (pytest exit 5) is not a failure.
 # --dist loadgroup: a module whose fixtures are costly (a campaign simulated, a diagnosis) marks
 # itself xdist_group and runs on one worker, so they are built once, not once per worker.
+# The numba kernels are compiled first, each in a process of its own (test/compile_kernels.py): on
+# a fresh clone both workers would otherwise compile the same ones at once.
+"$VENV/bin/python" test/compile_kernels.py
 status=0
 "$VENV/bin/python" -m pytest test -q --durations=15 -m "not ros" -n "${TEST_JOBS:-auto}" --dist loadgroup \
   "$@" || status=$?

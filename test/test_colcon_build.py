@@ -17,7 +17,7 @@ STARTUP = 60.0  # [s] the installed kernel compiled by the fixture, loaded from 
 
 
 @pytest.fixture(scope="module")
-def workspace(tmp_path_factory) -> Path:
+def workspace(tmp_path_factory, compiled_kernel) -> Path:
     """A colcon workspace holding a copy of the package, built."""
     colcon = shutil.which("colcon", path=str(Path(sys.executable).parent))
     if colcon is None:
@@ -42,8 +42,15 @@ def workspace(tmp_path_factory) -> Path:
     assert build.returncode == 0, build.stdout + build.stderr
     # Compile the installed copy's kernel once, as a process that starts nodes does
     # (compile_kernel; numba caches it beside the installed module): on a 2-core machine a cold
-    # compile took 65 s, which the start-up test below is not about.
+    # compile took 33-65 s, which the start-up test below is not about. Numba keys its cache by
+    # the source's contents, not its path: the repository's (compiled_kernel), copied beside
+    # the installed modules, loads; without it, this compiles.
     site = next((ws / "install" / "jetpipe_ros").glob("lib/python3*/site-packages"))
+    for cached in (REPO / "jetpipe_ros").glob("**/__pycache__/*.nb[ic]"):
+        target = site / cached.relative_to(REPO)
+        if target.parent.parent.is_dir():
+            target.parent.mkdir(exist_ok=True)
+            shutil.copy2(cached, target)
     subprocess.run([sys.executable, "-c", "from jetpipe_ros.model import compile_kernel; "
                     "compile_kernel()"], env={**env, "PYTHONPATH": str(site)}, cwd=ws,
                    check=True, timeout=600)
