@@ -663,7 +663,7 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
     sensors = data.get("sensors", ["y", "p1", "p2"])
     exp_rows = [[e["name"], e["piston"], e["train_s"], e["holdout_s"]]
                 for e in data["experiments"]]
-    style = ("body{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}"
+    style = ("body{font-family:sans-serif;max-width:1200px;margin:2em auto;color:#222}"
              "table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #ccc;"
              "padding:2px 8px;font-size:90%}th{background:#f2f2f2}img{max-width:100%}"
              ".params{overflow-wrap:anywhere;min-width:12em}.wide{overflow-x:auto}"
