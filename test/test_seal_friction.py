@@ -277,7 +277,10 @@ def test_friction_command_writes_loadable_parameters(tmp_path, capsys):
     assert set(own) == set(judged) and own[seal["selected"]]["exit.slope"] == 0.0
     pred = np.loadtxt(out / "prediction" / "PK_1bar.csv", delimiter=",", skiprows=1)
     assert pred.shape[1] == 3 and pred[0, 0] > 30.0  # the held-out second half
-    assert "data:image/png;base64," in (out / "report.html").read_text()
+    report = (out / "report.html").read_text()
+    assert "data:image/png;base64," in report
+    nrmse = judged[seal["selected"]]["nrmse"] * 100
+    assert f"held-out NRMSE {nrmse:.2f} % on its one record" in report  # not "x-x % over 1"
     # The record's level over time, from its passes: the entry direction's falls by 5 %
     # over the 70 s (95 % interval -6.7 to -3.1 %), the exit's holds (-1.8 to +2.0 %).
     drift = seal["records"]["PK_1bar"]["level_drift"]

@@ -224,9 +224,10 @@ def html_report(results: list[SealResult], doc: dict[str, Any],
     for res in results:
         nrmse = [s["nrmse"] * 100 for s in res.scores[res.selected].values()]
         drift = describe({p.record.name: drifts[p.record.name] for p in res.preps})
+        held = (f"{nrmse[0]:.2f} % on its one record" if len(nrmse) == 1 else
+                f"{min(nrmse):.2f}-{max(nrmse):.2f} % over {len(nrmse)} records")
         parts.append(f"<li>seal {html.escape(res.seal or '(unnamed)')}: {res.selected} "
-                     f"selected, held-out NRMSE {min(nrmse):.2f}-{max(nrmse):.2f} % over "
-                     f"{len(nrmse)} record(s)"
+                     f"selected, held-out NRMSE {held}"
                      + (f"; {html.escape(drift)}" if drift else "")
                      + "".join(f"<br><b>not used:</b> {html.escape(w)}"
                                for w in res.warnings(doc["split"])) + "</li>")
