@@ -57,7 +57,8 @@ def summary(ident: Identification) -> str:
             f"{v.top_frequency:.0f} Hz): K_b {v.values['valve.back_emf_constant']:.4g} V s/rad, "
             f"delay {v.values['valve.delay'] * 1e3:.2f} ms, lead-lag zero "
             f"{v.values['valve.lag_zero']:.0f} / pole {v.values['valve.lag_pole']:.0f} rad/s "
-            f"(paper: 0.1, 2 ms, 220 / 155); resonance {fr:.1f} Hz, peak gain {g:.3f} "
+            f"(paper: 0.1, 2 ms, 220 / 155), which trade against each other; the response "
+            f"they give, which the sweep pins: resonance {fr:.1f} Hz, peak gain {g:.3f} "
             f"(starting model {fr0:.1f} Hz, {g0:.3f}; paper measured about "
             f"{PAPER['resonance_hz']:.0f} Hz); residual {v.rms_error:.0f} Pa rms as pressure")
     if ident.hysteresis is not None:
