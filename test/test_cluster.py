@@ -18,7 +18,7 @@ from jetpipe_ros.workflows import selfcheck
 from jetpipe_ros.workflows.cluster import WORKER_CONFIG, close_local
 from jetpipe_ros.workflows.fleet import dataset_dirs, names_of
 from jetpipe_ros.model import ModelParams
-from test_diagnosis import make_dataset
+from test_diagnosis import PLUMBING, make_dataset
 
 
 #: The module fixtures below are costly: every test of this module runs on one test worker
@@ -48,7 +48,7 @@ def _build(log, truth, root, seed):
         f.write(root.name + "\n")
     if root.name == "case00" and log.with_suffix(".stop").exists():
         raise RuntimeError("interrupted")
-    make_dataset(root, truth, seed=seed % 1000)
+    make_dataset(root, truth, seed=seed % 1000, names=PLUMBING)
     with open(log.with_suffix(".index"), "a") as f:
         f.write(json.dumps(yaml.safe_load((root / "dataset.yaml").read_text())) + "\n")
 
@@ -115,10 +115,10 @@ def test_selfcheck_cases_run_on_the_cluster_and_resume(tmp_path, monkeypatch, sc
 def test_fleet_diagnoses_every_dataset_and_reports_the_bad_one(tmp_path, scheduler):
     fleet = tmp_path / "fleet"
     make_dataset(fleet / "axis1", ModelParams().with_effect("valve_lag", corner_frequency=20.0),
-                 seed=1)
+                 seed=1, names=PLUMBING)
     make_dataset(fleet / "axis2", ModelParams().with_values({"flow.gain_charge": 0.9,
                                                              "flow.gain_discharge": 0.9}),
-                 seed=2)
+                 seed=2, names=PLUMBING)
     shutil.copytree(fleet / "axis1", fleet / "axis3")
     csv = fleet / "axis3" / "sweep.csv"
     lines = csv.read_text().splitlines()

@@ -42,11 +42,12 @@ def csvs(root: Path) -> list[Path]:
 
 
 def relog(root: Path, rows: int = 0, lose: float = 0.0, jitter: float = 0.0,
-          drop: tuple[str, ...] = (), seed: int = 1) -> int:
+          drop: tuple[str, ...] = (), negate: tuple[str, ...] = (), seed: int = 1) -> int:
     """Rewrite every CSV as another logger: measurements ``rows`` rows early (> 0: row k holds
     the command u_k beside what was measured at t_k+rows, after it acted; < 0: late), a
     fraction ``lose`` of the rows lost, stamps jittered by +-``jitter`` samples, the columns
-    ``drop`` not logged. Returns how many rows were lost."""
+    ``negate`` with the opposite sign (a sensor mounted the other way), the columns ``drop``
+    not logged. Returns how many rows were lost."""
     rng = np.random.default_rng(seed)
     lost_total = 0
     for path in csvs(root):
@@ -65,6 +66,8 @@ def relog(root: Path, rows: int = 0, lose: float = 0.0, jitter: float = 0.0,
             data = np.delete(data, lost, axis=0)
             lost_total += lost.size
         data[:, 0] += rng.uniform(-jitter, jitter, data.shape[0]) * DT
+        for c in negate:
+            data[:, header.index(c)] *= -1.0
         keep = [i for i, c in enumerate(header) if c not in drop]
         np.savetxt(path, data[:, keep], delimiter=",", header=",".join(header[i] for i in keep),
                    comments="", fmt="%.17g")
@@ -194,12 +197,18 @@ def test_an_open_loop_record_late_by_a_row_is_ambiguous_with_a_valve_delay(nomin
     assert "valve delay" in aligned.words and "cannot tell" in aligned.words
 
 
-def test_a_lagging_valve_logged_a_row_early_with_lost_rows_and_jitter(tmp_path):
-    """The verdict of the aligned record (valve_lag near its 20 Hz), the logger's -1 ms reported
-    within 0.2 ms, and every lost row counted and left out of the comparison."""
+def test_a_lagging_valve_logged_by_a_bench_with_every_artefact_at_once(tmp_path):
+    """A bench's logger that writes each measurement a row early, loses 1 % of the rows,
+    jitters the stamps and counts the position the other way (a sensor mounted the other way),
+    with no velocity column: the verdict of the record logged by the contract (valve_lag near
+    its 20 Hz), the logger's -1 ms reported within 0.2 ms, every lost row counted and left out
+    of the comparison, and the position's sign read and said, with the declaration that reads
+    it so."""
+    from jetpipe_ros.workflows.cli import summary_lines
+
     root = record(tmp_path / "data", ModelParams().with_effect("valve_lag",
                                                                 corner_frequency=20.0))
-    lost = relog(root, rows=1, lose=0.01, jitter=0.3)
+    lost = relog(root, rows=1, lose=0.01, jitter=0.3, negate=("y",), drop=("v",))
     result = diagnose(root, tmp_path / "out", workers=1, quiet=True)
     v, data = result["verdict"], result["data"]
     assert v["effect"] == "valve_lag" and v["model_fits"]
@@ -213,8 +222,18 @@ def test_a_lagging_valve_logged_a_row_early_with_lost_rows_and_jitter(tmp_path):
     assert data["rows_not_compared"] == lost
     notes = " ".join(data["corrections"])
     assert "jitter" in notes and "rows missing" in notes
+    # the position counted the other way: read before anything is fitted, said in
+    # diagnosis.json, the corrections, the console's first line and the report's summary
+    assert data["signs"]["changes"] == ["y"]
+    assert data["signs"]["as_logged_correlation"]["y"] < -0.3
+    assert data["signs"]["against_as_logged"] == ["y"]
+    assert any(c.startswith("signs:") and "units: {y: -m}" in c for c in data["corrections"])
+    saved = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
+    assert saved["data"]["signs"] == data["signs"]
+    assert summary_lines(result, "out")[0].startswith("signs: the measured changes run against")
     report = (tmp_path / "out" / "report.html").read_text()
     assert "Time base (logging convention)" in report
+    assert "<b>Signs (corrected):</b>" in report
 
 
 def test_hardware_outside_the_model_class_names_no_effect(tmp_path, capsys):

@@ -2,7 +2,6 @@
 the code that reads them, as a rig with a sensor mounted the other way, a valve wired the other
 way or the pressures on each other's channels would log them, read back by the contract."""
 
-import json
 import shutil
 from pathlib import Path
 
@@ -15,8 +14,6 @@ from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.diagnosis.data import prepare
 from jetpipe_ros.diagnosis.signs import measure
 from jetpipe_ros.model import ModelParams, load_params
-from jetpipe_ros.workflows import diagnose
-from jetpipe_ros.workflows.cli import summary_lines
 from foreign_hardware import write_foreign_dataset, write_foreign_params
 
 #: A short campaign with locked, open-loop and closed-loop experiments, three held out.
@@ -108,25 +105,3 @@ def test_hardware_outside_the_model_class_is_read_as_logged(tmp_path):
     assert found.changes == ()
     assert 0.2 < found.taken.correlation["y"] < 0.7
 
-
-def test_a_lagging_valve_seen_by_a_position_sensor_mounted_the_other_way(tmp_path):
-    """The verdict of the record logged by the contract (valve_lag near its 20 Hz) from the
-    record whose position counts the other way, the reading said in diagnosis.json and in the
-    corrections, with the declaration that reads it so."""
-    root = record(tmp_path / "data", ModelParams().with_effect("valve_lag",
-                                                                corner_frequency=20.0))
-    rewire(root, negate=("y",))
-    result = diagnose(root, tmp_path / "out", workers=1, quiet=True)
-    v, data = result["verdict"], result["data"]
-    assert v["effect"] == "valve_lag" and v["model_fits"]
-    assert v["params"]["corner_frequency"] == pytest.approx(20.0, rel=0.15)
-    assert data["signs"]["changes"] == ["y"]
-    assert data["signs"]["as_logged_correlation"]["y"] < -0.3
-    assert data["signs"]["against_as_logged"] == ["y"]
-    assert any(c.startswith("signs:") and "units: {y: -m}" in c for c in data["corrections"])
-    saved = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
-    assert saved["data"]["signs"] == data["signs"]
-    # the console's last lines and the report's summary begin with it
-    assert summary_lines(result, "out")[0].startswith("signs: the measured changes run against")
-    report = (tmp_path / "out" / "report.html").read_text()
-    assert "<b>Signs (corrected):</b>" in report
