@@ -33,7 +33,10 @@ nothing is not waited for, the report says so, and ``jetpipe export`` leaves its
 
 A peer that dies is detected: in a campaign, no new sample for ``peer_timeout`` seconds (wall
 clock) while the simulator still re-publishes its waiting sample means the controller (in a
-closed-loop phase) stopped answering; no ``joint_states`` at all means the simulator stopped.
+closed-loop phase) stopped answering; no ``joint_states`` at all means the simulator stopped,
+unless, in a closed-loop phase, its latest sample had got no ``voltage_cmd``: then the
+controller stopped first (whose turn it was), and the simulator after it (a peer killed
+mid-transfer can stall the others' publishers in the middleware).
 In record mode, no ``joint_states`` for ``peer_timeout`` after the stream began means it
 stopped.
 The recorder then logs which peer, marks the running experiment incomplete, closes the bag and
@@ -156,6 +159,7 @@ class Recorder(Node):
         #: joint_states' latest stamp intervals [ns]: its rate, checked against sample_time
         self._intervals: deque[int] = deque(maxlen=STREAM_INTERVALS)
         self.heard: float | None = None  # wall time [s] of the latest joint_states message
+        self.commanded: float | None = None  # wall time [s] of the latest voltage_cmd heard
         self.progressed = time.monotonic()  # wall time [s] of the latest new sample
         self.failure: str | None = None  # why the recording stopped early (a peer died)
         depth = QoSProfile(depth=self.opts["queue_depth"], history=HistoryPolicy.KEEP_LAST,
@@ -235,7 +239,11 @@ class Recorder(Node):
         return callback
 
     def _unstamped(self, name: str):
+        is_command = name == self._names["voltage_cmd"]
+
         def callback(data: bytes) -> None:
+            if is_command:
+                self.commanded = time.monotonic()
             if not self.bag.closed:
                 self.bag.write(name, self._now_ns, data)
         return callback
@@ -252,8 +260,14 @@ class Recorder(Node):
         sim, js = self.opts["simulator_node"], self._names["joint_states"]
         if self.driving:
             if now - max(self.heard or 0.0, self.progressed) > timeout:
-                self._fail(f"simulator {sim} stopped publishing: nothing on {js} for "
-                           f"{timeout:g} s (killed or hung?)")
+                if self._owed_by_controller():
+                    self._fail(f"controller {self.opts['controller_node']} stopped answering: "
+                               f"the simulator's latest sample got no voltage_cmd, and nothing "
+                               f"more came on {js} for {timeout:g} s (the simulator stalled or "
+                               f"stopped after it; killed or hung?)")
+                else:
+                    self._fail(f"simulator {sim} stopped publishing: nothing on {js} for "
+                               f"{timeout:g} s (killed or hung?)")
             elif now - self.progressed > timeout:
                 phase = self._phases[self._index]
                 if self._busy:
@@ -271,6 +285,18 @@ class Recorder(Node):
         elif self.campaign is None and self.heard is not None and now - self.heard > timeout:
             self._fail(f"the stream stopped: nothing on {js} for {timeout:g} s (simulator "
                        f"{sim} killed or hung?)")
+
+    def _owed_by_controller(self) -> bool:
+        """In a closed-loop phase, both streams silent: True when the controller owed the next
+        message. The loop alternates a sample (joint_states) and the controller's answer
+        (voltage_cmd), so the peer that stopped is the one whose turn it was: a sample heard
+        after the latest command waited for the controller. The simulator's re-published
+        samples usually tell the same (it keeps publishing while it waits), but a peer killed
+        mid-transfer can stall the others' publishers in the middleware for seconds (this
+        node's too, publishing the setpoint to a dead controller: it then hears nothing)."""
+        phase = self._phases[self._index]
+        return (phase.command.closed_loop and not self._busy and self.heard is not None
+                and (self.commanded is None or self.commanded < self.heard))
 
     def _fail(self, why: str) -> None:
         """A peer died: record why and end the run (the caller closes the bag)."""
