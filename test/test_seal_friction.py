@@ -612,6 +612,25 @@ def test_a_record_logged_with_the_other_sign_is_refused_not_fitted(tmp_path, cap
     assert not out.exists()
 
 
+def test_a_record_with_both_position_and_force_counted_the_other_way_is_refused(tmp_path,
+                                                                              capsys):
+    """The same record with the position and the force both flipped (a rig whose positive
+    direction is the other way): the power check passes (both signs turn round), but the
+    friction F - (p - p_atm) A then averages -2 times the pressure's force, where the twelve
+    public records give 2-3 % of it. Refused in one line naming the file, nothing written (it
+    had been fitted, every form missing by 860 % NRMSE)."""
+    rows = np.loadtxt(SEALS / "PK_1bar.csv", delimiter=",", skiprows=1)
+    rows[:, [1, 3]] *= -1.0
+    rig = _write_rig(tmp_path / "flipped", *rows.T)
+    out = tmp_path / "out"
+    assert main(["friction", str(rig), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "rig.csv" in err
+    ratio = float(err.split("averages ")[1].split(" times")[0])
+    assert ratio == pytest.approx(-2.0, abs=0.1)
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("column, scale, message", [("t", 1e3, "'t'"), ("x", 1e3, "'x'")])
 def test_a_column_in_other_units_is_refused_naming_it(tmp_path, column, scale, message):
     """Time in ms (a 10 s step) or the position in mm (36 m of travel): refused, naming the
