@@ -245,9 +245,14 @@ def test_hardware_outside_the_model_class_names_no_effect(tmp_path, capsys):
     root = write_foreign_dataset(tmp_path / "data")
     params = write_foreign_params(tmp_path / "params.yaml")
     assert main(["diagnose", str(root), "--out", str(tmp_path / "out"), "--params", str(params),
-                 "--quiet", "--jobs", "1"]) == 0
-    printed = capsys.readouterr().out
+                 "--jobs", "1"]) == 0
+    captured = capsys.readouterr()
+    printed = captured.out
     assert printed.count("does not describe this hardware") == 1
+    # said as progress once the recalibration is known, before the candidates' minute of fits
+    progress = captured.err
+    note = progress.index("no better than holding the last measurement")
+    assert note < progress.index("candidates alone and on the recalibrated model")
     assert "verdict: no effect named (model_fits: false)" in printed
     result = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
     v = result["verdict"]

@@ -482,10 +482,17 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
     imitator = Imitator(prepared, nominal, cal)
     imitation = imitations(imitator, visible)
     with_added_sensors(prepared, nominal, cal, visible, imitation)
+    still = score(prepared, [persistence(r, dt) for r in prepared.records], "holdout")
     with Fitter(prepared, swapped(prepared), workers, progress) as fitter:
         (cal_row,) = rank([cal], nom_hold, nom_windows, dt)
         progress(f"recalibrated: held-out gap {nom_hold.gap:.2f} % -> {cal.holdout.gap:.2f} % "
                  f"({', '.join(calibration.describe(cal.values[CAL])) or 'no knob off'})")
+        if cal.holdout.gap >= still.gap:
+            progress(f"note: the recalibrated model predicts the held-out data no better than "
+                     f"holding the last measurement ({cal.holdout.gap:.0f} % against "
+                     f"{still.gap:.0f} %): unless a candidate closes that, the model does not "
+                     f"describe this hardware (check the units, the sensors' signs and the "
+                     f"logger first); the candidates are tried all the same")
         alone, on_cal = fit_effects(fitter, nominal, nom_train, cal, names, progress)
         alone_ranking = rank(list(alone.values()), nom_hold, nom_windows, dt)
         ranking = rank(on_cal, cal.holdout, cal.holdout_windows, dt)
@@ -541,7 +548,6 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
                                              stroke)
     aug_all = predict_all(augmented, prepared, None) if final is not None else nom_all
     aug_hold = score(prepared, aug_all, "holdout")
-    still = score(prepared, [persistence(r, dt) for r in prepared.records], "holdout")
     fits = aug_hold.gap < still.gap
     if not fits:
         progress(f"the best model misses by {aug_hold.gap:.0f} % of the signals' spread, no "
