@@ -44,10 +44,14 @@ def summary(ident: Identification) -> str:
     if ident.table is not None:
         f = ident.table
         verdict = (f"kept (largest correction {max(map(abs, f.table)):.2f} g/s)" if f.kept else
-                   "not kept: Eq. 8 alone predicts the tests left out as well (table zero)")
+                   "not kept: Eq. 8 with the bench's own scales predicts the tests left out as "
+                   "well (table zero)")
         lines.append(f"- flow map correction table from {len(f.experiments)} charge/discharge "
                      f"test(s), each left out in turn: Eq. 8's error on them rms "
-                     f"{f.rms_before:.2e} kg/s, with the table {f.rms_after:.2e} kg/s: {verdict}")
+                     f"{f.rms_before:.2e} kg/s, with the table {f.rms_after:.2e} kg/s; with the "
+                     f"bench's own scales (each chamber's flow per direction, the jet pipe's "
+                     f"gain) {f.rms_scales:.2e} kg/s, with the table beside them "
+                     f"{f.rms_scales_table:.2e} kg/s: {verdict}")
     if ident.valve is not None:
         v = ident.valve
         fr, g = peak(ident.params)
