@@ -371,6 +371,8 @@ def place(prepared: Prepared, params: ModelParams,
         share = 1.0 - remapped / chambers if chambers > 0 else 0.0
         out["flow_map_removed"] = share
         subsystem = "valve" if share >= PLACES else "chamber"
+        removed = (f"{100 * share:.0f} % of the chambers' replay gap" if share > 0.0 else
+                   f"none of the chambers' replay gap (it leaves {remapped:.2f} %)")
         words += (f"; the valve's flow map identified afresh (Eq. 8 times a smooth gain) removes "
-                  f"{100 * share:.0f} % of the chambers' replay gap")
+                  f"{removed}")
     return {**out, "subsystem": subsystem, "words": words}
