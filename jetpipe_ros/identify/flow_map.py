@@ -245,15 +245,28 @@ def _solve(gram: np.ndarray, rhs: np.ndarray, penalty: np.ndarray, weight: float
     return np.linalg.solve(gram + scale * (pen + RIDGE * np.eye(n)), rhs)
 
 
-def _left_out(designs: Sequence[np.ndarray], errors: Sequence[np.ndarray],
-              solve: Any) -> float:
+@dataclass(frozen=True)
+class _Normal:
+    """Each test's design and errors with their normal equations, formed once for every
+    roughness weight tried."""
+
+    designs: list[np.ndarray]
+    errors: Sequence[np.ndarray]
+    grams: list[np.ndarray]
+    rhs: list[np.ndarray]
+
+    @classmethod
+    def of(cls, designs: list[np.ndarray], errors: Sequence[np.ndarray]) -> _Normal:
+        return cls(designs, errors, [a.T @ a for a in designs],
+                   [a.T @ e for a, e in zip(designs, errors)])
+
+
+def _left_out(normal: _Normal, solve: Any) -> float:
     """Sum of squares of each test's errors predicted by ``solve(gram, rhs)`` fitted on the
     other tests (leave-one-test-out)."""
-    grams = [a.T @ a for a in designs]
-    rhs = [a.T @ e for a, e in zip(designs, errors)]
-    gram_all, rhs_all = sum(grams), sum(rhs)
+    gram_all, rhs_all = sum(normal.grams), sum(normal.rhs)
     return sum(float(np.sum((e - a @ solve(gram_all - g, rhs_all - r)) ** 2))
-               for a, e, g, r in zip(designs, errors, grams, rhs))
+               for a, e, g, r in zip(normal.designs, normal.errors, normal.grams, normal.rhs))
 
 
 def identify_flow_table(recs: list[Recording], params: Mapping[str, Any],
@@ -294,19 +307,19 @@ def identify_flow_table(recs: list[Recording], params: Mapping[str, Any],
         errors.append((s.q / gain - eq8) / KG_PER_G)  # the table sits inside the gains
     penalty = _roughness()
     penalty = penalty.T @ penalty
-    both = [np.column_stack([a, b]) for a, b in zip(designs, scales)]
+    table_only = _Normal.of(designs, errors)
+    both = _Normal.of([np.column_stack([a, b]) for a, b in zip(designs, scales)], errors)
     before = sum(float(e @ e) for e in errors)
-    scored = [(_left_out(designs, errors, lambda g, r, w=w: _solve(g, r, penalty, w)),
-               _left_out(both, errors, lambda g, r, w=w: _solve(g, r, penalty, w)), w)
+    scored = [(_left_out(table_only, lambda g, r, w=w: _solve(g, r, penalty, w)),
+               _left_out(both, lambda g, r, w=w: _solve(g, r, penalty, w)), w)
               for w in SMOOTHING]
     alone, _, weight = min(scored)
     beside = min(x[1] for x in scored)
-    scaled = _left_out(scales, errors, lambda g, r: np.linalg.solve(g, r))
+    scaled = _left_out(_Normal.of(scales, errors), lambda g, r: np.linalg.solve(g, r))
     n = sum(e.size for e in errors)
     kept = beside <= (1.0 - MIN_GAIN) * scaled
-    grams = sum(a.T @ a for a in designs)
-    rhs = sum(a.T @ e for a, e in zip(designs, errors))
-    table = _solve(grams, rhs, penalty, weight) if kept else np.zeros(TABLE_SIZE)
+    table = (_solve(sum(table_only.grams), sum(table_only.rhs), penalty, weight) if kept
+             else np.zeros(TABLE_SIZE))
     return FlowTableResult(
         table=[float(v) for v in table], kept=bool(kept), smoothing=float(weight),
         rms_before=math.sqrt(before / n) * KG_PER_G,
