@@ -332,9 +332,9 @@ def test_a_single_effect_pinned_at_the_edge_of_its_range_is_not_named(rng):
 
 
 def test_a_pair_member_back_where_it_vanishes_is_found():
-    """diagnose.vanished: a joint refit that put the supply back at 10 bar left the leak doing
-    the work (the pair is the leak alone, refitted without the supply); a member that still
-    acts, even slightly, or a single effect, is not taken out."""
+    """diagnose.vanished: a joint refit that put the supply back at 10 bar (or a hose's length
+    back at 0, its bore anywhere) left the leak doing the work (the pair is the leak alone,
+    refitted without the supply); a member that still acts, even slightly, or a single effect, is not taken out."""
     from jetpipe_ros.diagnosis.diagnose import vanished
 
     def joint(supply_pa):
@@ -347,6 +347,10 @@ def test_a_pair_member_back_where_it_vanishes_is_found():
 
     assert vanished(joint(0.9997e6)) == ["supply_pressure"]
     assert vanished(joint(0.97e6)) == []
+    # a knob spanning a form's extent is never at "off": a hose of no length, whatever its bore
+    hose = fit("calibration+valve_delay:hose+leakage:orifice", 0.1, np.zeros(3),
+               **{"valve_delay:hose": {"length": 0.0, "bore": 0.003}})
+    assert vanished(hose) == ["valve_delay:hose"]
     single = fit("leakage:orifice", 0.1, np.zeros(3), **{"leakage:orifice": {"cross_area": 0.0}})
     assert vanished(single) == []
 

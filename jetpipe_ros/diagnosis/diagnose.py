@@ -294,13 +294,13 @@ def _grow(fitter: Fitter, nominal: ModelParams, base: Fit, others: Sequence[str]
 
 
 def vanished(f: Fit, tolerance: float = 0.01) -> list[str]:
-    """The effects of a fit with more than one whose knobs all sit within ``tolerance`` (of
-    the unit-scaled range) of where the effect vanishes: there, but doing nothing."""
+    """The effects of a fit with more than one whose size knobs all sit within ``tolerance``
+    (of the unit-scaled range) of where the effect vanishes (:meth:`KnobGroup.vanishes`; a knob
+    spanning a form's extent, as a hose's bore, never sits at "off"): there, but doing
+    nothing."""
     if len(f.effects) < 2:
         return []
-    z = f.knobs_by_group()
-    return [g for g in f.effects
-            if np.max(np.abs(z[g] - CANDIDATES[g].rest(f.values[g]))) <= tolerance]
+    return [g for g in f.effects if CANDIDATES[g].vanishes(f.values[g], tolerance)]
 
 
 def cross_check(rows: Sequence[Ranked], fitter: Fitter, nominal: ModelParams, nom_preds,
