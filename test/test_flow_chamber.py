@@ -73,11 +73,33 @@ def test_flow_gains_scale_each_direction_and_keep_the_null():
     q_in = chamber_inflow(COEF, 1.0, 3e5, 1e6)
     q_out = chamber_inflow(COEF, -1.0, 6e5, 1e6)
     assert q_in > 0 > q_out
-    assert chamber_inflow(COEF, 1.0, 3e5, 1e6, 0.9, 1.2) == pytest.approx(0.9 * q_in)
-    assert chamber_inflow(COEF, -1.0, 6e5, 1e6, 0.9, 1.2) == pytest.approx(1.2 * q_out)
+    assert chamber_inflow(COEF, 1.0, 3e5, 1e6, 1e5, 0.9, 1.2) == pytest.approx(0.9 * q_in)
+    assert chamber_inflow(COEF, -1.0, 6e5, 1e6, 1e5, 0.9, 1.2) == pytest.approx(1.2 * q_out)
     # The null pressure of q(0, p) (4.165 bar) does not move with the gains.
-    root = optimize.brentq(lambda p: chamber_inflow(COEF, 0.0, p, 1e6, 0.7, 1.3), 2e5, 8e5)
+    root = optimize.brentq(lambda p: chamber_inflow(COEF, 0.0, p, 1e6, 1e5, 0.7, 1.3), 2e5, 8e5)
     assert root == pytest.approx(4.165e5, rel=1e-3)
+
+
+@pytest.mark.parametrize("reference, null_bar, scale", [
+    (1e5, 1.0 + 3.165 * 6.0 / 9.0, 6.0 / 9.0),  # affine over [p_atm, p_s]: 3.110 bar
+    (0.0, 4.165 * 0.7, 0.7),  # similarity in absolute pressure: 2.916 bar
+    (0.5e5, 0.5 + 3.665 * 6.5 / 9.5, 6.5 / 9.5),
+])
+def test_a_lower_supply_moves_the_null_and_the_flow_by_the_laws_reference(reference, null_bar,
+                                                                          scale):
+    """At 7 bar the null of q(0, p) (4.165 bar at 10) lies at the reference plus the nominal
+    null's excess over it times (7 bar - ref) / (10 bar - ref), and a flow read at the mapped
+    pressure is scaled by the same span."""
+    root = optimize.brentq(lambda p: chamber_inflow(COEF, 0.0, p, 7e5, reference), 1.5e5, 6e5)
+    assert root == pytest.approx(null_bar * 1e5, rel=1e-3)
+    # chamber 1 at the pressure that maps onto 3 bar at 10 bar: the flow is Eq. 8's there,
+    # times the span
+    p = reference + (3e5 - reference) * scale
+    assert chamber_inflow(COEF, 2.0, p, 7e5, reference) == pytest.approx(
+        scale * flow_polynomial(COEF, 2.0, 3.0), rel=1e-9)
+    # at the nominal supply the reference changes nothing: Eq. 8
+    assert chamber_inflow(COEF, 2.0, 3e5, 1e6, reference) == pytest.approx(
+        flow_polynomial(COEF, 2.0, 3.0), rel=1e-12)
 
 
 def test_valve_gain_moves_the_locked_equilibrium_to_the_null_of_the_scaled_voltage():

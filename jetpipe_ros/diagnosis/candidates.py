@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from jetpipe_ros.model import ModelParams
+from jetpipe_ros.model.flow import GAMMA_AIR, P_ATM
 
 
 @dataclass(frozen=True)
@@ -199,6 +200,19 @@ PORT_KNOBS = (Knob("port_volume", 0.0, 1e-4, 0.0),
               Knob("port_conductance", 1e-9, 1e-7, 1e-7, log=True, extent=True),
               Knob("port_index", 0.5, 1.0, 0.5, extent=True))
 
+#: The supply_pressure candidates' law knob [Pa]: the pressure the flow map keeps its shape
+#: relative to when the supply differs from the 10 bar of Eq. 8 (:mod:`jetpipe_ros.model.flow`).
+#: Its range is its physical extent: from 0, similarity in absolute pressure (a choked jet's mass
+#: flow grows with the absolute supply), to the atmosphere (the pressure a subsonic jet recovers
+#: in a receiver grows with the supply's excess over it); the model's default, p_atm, is where
+#: it "changes nothing". The starting grid tries both ends.
+REFERENCE_KNOB = Knob("reference", 0.0, P_ATM, P_ATM, tries=(0.0,), extent=True)
+#: Its typical value [Pa]: a sonic jet's thrust, C_F p_s - p_atm with a convergent nozzle's
+#: thrust coefficient C_F = (gamma + 1) (2 / (gamma + 1))^(gamma / (gamma - 1)) = 1.27 in air,
+#: grows with the supply above p_atm / C_F = 0.79 bar.
+SONIC_REFERENCE = P_ATM / ((GAMMA_AIR + 1.0)
+                           * (2.0 / (GAMMA_AIR + 1.0)) ** (GAMMA_AIR / (GAMMA_AIR - 1.0)))
+
 #: Candidates that cannot be fitted together: each places a passage between the valve and each
 #: chamber, and the model holds one (:func:`jetpipe_ros.model.params.ModelParams` refuses both).
 EXCLUSIVE = (frozenset({"valve_lag:port", "valve_delay:line"}),
@@ -236,13 +250,14 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     Candidate("valve_hysteresis", (Knob("half_width", 0.0, 0.6, 0.0),
                                    Knob("spread", 0.0, 1.0, 0.0, tries=(1.0,), extent=True)),
               {"half_width": 0.25, "spread": 0.0}, {"elements": 8}),
-    Candidate("supply_pressure", (Knob("pressure", 4e5, 1.1e6, 1e6),), {"pressure": 8e5},
-              {"form": "constant"}),
+    Candidate("supply_pressure", (Knob("pressure", 4e5, 1.1e6, 1e6), REFERENCE_KNOB),
+              {"pressure": 8e5, "reference": SONIC_REFERENCE}, {"form": "constant"}),
     Candidate("supply_pressure:line", (Knob("line_conductance", 3e-9, 1e-5, 1e-5, log=True),
                                        Knob("pressure", 4e5, 1.1e6, 1e6),
-                                       Knob("line_volume", 1e-6, 1e-3, 1e-6, log=True)),
-              {"line_conductance": 5e-8, "pressure": 9e5, "line_volume": 1e-4},
-              {"form": "line"}),
+                                       Knob("line_volume", 1e-6, 1e-3, 1e-6, log=True),
+                                       REFERENCE_KNOB),
+              {"line_conductance": 5e-8, "pressure": 9e5, "line_volume": 1e-4,
+               "reference": SONIC_REFERENCE}, {"form": "line"}),
     Candidate("thermal:polytropic", (Knob("polytropic_index", 1.0, 1.4, 1.0),),
               {"polytropic_index": 1.2}, {"form": "polytropic"}),
     Candidate("thermal:heat_transfer", (Knob("heat_transfer", 0.05, 100.0, 100.0, log=True),),

@@ -4,8 +4,13 @@ q(u, p) is the paper's fifth-order polynomial in the equivalent voltage u [V] an
 pressure p [bar], evaluated with p clamped to its identified range [1, 10] bar. The valve vents to
 atmosphere, so a chamber at or below atmospheric pressure has no outflow. A supply pressure other
 than the 10 bar of the identification (supply_pressure effect) maps the chamber pressure affinely
-from [p_atm, p_s] onto [1, 10] bar and scales the flow by (p_s - p_atm) / 9 bar: the jet-pipe's
-pressure recovery is a fixed fraction of the supply-to-atmosphere span.
+from [p_ref, p_s] onto [p_ref, 10 bar] and scales the flow by (p_s - p_ref) / (10 bar - p_ref):
+the map keeps its shape relative to a reference pressure p_ref. The physics admits a range: a
+choked jet's mass flow grows with the absolute supply (p_ref = 0: similarity in absolute
+pressure), the pressure a subsonic jet recovers in a receiver with the supply's excess over the
+atmosphere (p_ref = p_atm, the default), a sonic jet's thrust in between (p_ref = p_atm / C_F,
+about 0.79 bar with the thrust coefficient C_F = 1.27 of a convergent nozzle in air). At the
+nominal supply every reference gives Eq. 8.
 
 An individual valve's map departs from Eq. 8 by about the polynomial's fit error, in a shape it
 cannot hold everywhere: an optional correction table (``flow.table``, zero by default) adds a
@@ -168,18 +173,20 @@ def mass_flow(coef: np.ndarray, u: np.ndarray | float, p_bar: np.ndarray | float
 
 @njit(cache=True, error_model="numpy", inline="always")
 def chamber_inflow(coef: np.ndarray, u: float, p: float, p_supply: float,
-                   gain_charge: float = 1.0, gain_discharge: float = 1.0) -> float:
+                   p_reference: float = P_ATM, gain_charge: float = 1.0,
+                   gain_discharge: float = 1.0) -> float:
     """Mass flow [kg/s] into a chamber at pressure ``p`` [Pa] for equivalent voltage ``u`` [V].
 
-    ``p_supply`` [Pa] is the actual supply; at 10 bar this is Eq. 8 with p clamped to [1, 10] bar
-    and no outflow at or below atmospheric pressure. ``gain_charge`` and ``gain_discharge``
-    multiply the flow where it fills (q > 0) and empties (q < 0) the chamber: an individual
-    valve's flow map differs from the paper's by a factor per direction. ``coef`` is the flow
-    map: Eq. 8's 21 coefficients, optionally followed by the correction table
-    (:func:`table_flow`), added before the gains.
+    ``p_supply`` [Pa] is the actual supply, ``p_reference`` [Pa] the pressure the map keeps its
+    shape relative to when the supply differs (0 to p_atm, module docstring); at 10 bar this is
+    Eq. 8 with p clamped to [1, 10] bar and no outflow at or below atmospheric pressure.
+    ``gain_charge`` and ``gain_discharge`` multiply the flow where it fills (q > 0) and empties
+    (q < 0) the chamber: an individual valve's flow map differs from the paper's by a factor per
+    direction. ``coef`` is the flow map: Eq. 8's 21 coefficients, optionally followed by the
+    correction table (:func:`table_flow`), added before the gains.
     """
-    span = (p_supply - P_ATM) / (P_SUPPLY_NOMINAL - P_ATM)
-    p_map = 1.0 + (p - P_ATM) * (1e-5 / span)
+    span = (p_supply - p_reference) / (P_SUPPLY_NOMINAL - p_reference)
+    p_map = (p_reference + (p - p_reference) / span) * 1e-5
     p_map = min(max(p_map, 1.0), 10.0)
     q = flow_polynomial(coef, u, p_map)
     if coef.shape[0] > N_TERMS:

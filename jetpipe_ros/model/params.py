@@ -247,6 +247,11 @@ _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
         _p("line_volume", 1e-4, "Volume of the line and regulator between the line conductance "
            "and the valve (form line): time constant line_volume / (r T line_conductance)",
            "m^3", 1e-7, 0.1),
+        _p("reference", 1e5, "Pressure (absolute) the flow map keeps its shape relative to "
+           "when the supply differs from 10 bar: chamber pressures map from [reference, supply] "
+           "onto [reference, 10 bar], flows scale by the span (1e5 = the atmosphere: the "
+           "recovery of a subsonic jet; 0 = similarity in absolute pressure: a choked jet's "
+           "mass flow; about 0.79e5: a sonic jet's thrust)", "Pa", 0.0, 1e5),
     ],
     "thermal": [
         _p("form", "polytropic", "Thermal model: polytropic index, or heat transfer to the "
