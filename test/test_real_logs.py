@@ -504,6 +504,33 @@ def test_a_delay_the_recalibration_imitates_on_the_position_alone_is_not_ruled_o
     assert imitated_effects(found["both"]) == {}
 
 
+def test_near_the_bar_the_imitation_is_refitted_not_extrapolated(parameters_only_recalibrated):
+    """A change the knobs can imitate exactly, as they are far from linear: exit-phase
+    friction 1.5 times and charging flow 0.8 times the recalibration's, seen by the position
+    alone. Extrapolated from the recalibrated model's Jacobian, the knobs' best linear imitation
+    leaves 0.9 %, over the 0.5 % bar, as if no recalibration could take its place; refitted
+    (the model without the change fitted to the model with it), the knobs land on the change
+    itself and leave nothing."""
+    from jetpipe_ros.diagnosis.calibration import CALIBRATION
+    from jetpipe_ros.diagnosis.collinearity import Imitator
+    from jetpipe_ros.diagnosis.verdict import NOISE_GAP
+
+    class KnobsMoved:
+        def apply(self, params, values):
+            return CALIBRATION.apply(params, values)
+
+    _, cal, prepared = parameters_only_recalibrated["position"]
+    imitator = Imitator(prepared, ModelParams(), cal)
+    change = {"friction_exit": 1.5, "flow_gain_charge": 0.8}
+    shown, linear, _ = imitator.imitate(KnobsMoved(), change)
+    _, refitted, delta = imitator.imitate(KnobsMoved(), change, refine=True)
+    assert shown > 10 * NOISE_GAP and linear > NOISE_GAP
+    assert refitted < 0.05 * NOISE_GAP
+    factors = dict(zip(imitator.knobs, np.exp(-delta)))  # the imitating moves
+    assert factors["friction_exit"] == pytest.approx(1.5, rel=0.02)
+    assert factors["flow_gain_charge"] == pytest.approx(0.8, rel=0.02)
+
+
 def test_how_small_a_delay_would_show_depends_on_the_pressures_logged(
         parameters_only_recalibrated):
     """The detection limit of a ``none`` (:mod:`detection`): with both pressures the delay of
