@@ -126,6 +126,8 @@ def test_a_pair_whose_refit_switches_a_member_off_is_refitted_as_the_other_alone
                 z = f.knobs_by_group()
                 z["sensor_dynamics"] = group("sensor_dynamics").start()
                 f.z = np.concatenate([z[g] for g in f.groups])
+                f.values = {**f.values, "sensor_dynamics": group("sensor_dynamics").values(
+                    z["sensor_dynamics"])}
             return f
 
     fitter = Vanishing()
