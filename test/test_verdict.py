@@ -128,8 +128,9 @@ def test_a_second_effect_switched_off_must_lose_what_the_pair_gains(rng):
     says why the pair is not. A pair that leaves 0.25 % (held-out BIC better than the heat
     alone's although the supply fits two knobs, its set pressure and its law's reference) and
     whose supply, switched off, leaves what the heat leaves or more (0.80 %) is named. A pair
-    that gains too little over the heat anyway (0.60 %) is not named, and the reason does not blame the switched-off test. Each
-    pair's ranking row says which rule left it out (:func:`left_out`), or nothing when named."""
+    that gains too little over the heat anyway (0.60 %) is not named, and the reason does not
+    blame the switched-off test. Each pair's ranking row says which rule left it out
+    (:func:`left_out`), or nothing when named."""
     level = lambda g: FLOOR + (g / 100) ** 2  # noqa: E731
     nom = windows(level(5.4), rng)
     single = fit("calibration+thermal:heat_transfer", 0.67, windows(level(0.67), rng))
@@ -335,7 +336,8 @@ def test_a_single_effect_pinned_at_the_edge_of_its_range_is_not_named(rng):
 def test_a_pair_member_back_where_it_vanishes_is_found():
     """diagnose.vanished: a joint refit that put the supply back at 10 bar (or a hose's length
     back at 0, its bore anywhere) left the leak doing the work (the pair is the leak alone,
-    refitted without the supply); a member that still acts, even slightly, or a single effect, is not taken out."""
+    refitted without the supply); a member that still acts, even slightly, or a single effect,
+    is not taken out."""
     from jetpipe_ros.diagnosis.diagnose import vanished
 
     def joint(supply_pa):

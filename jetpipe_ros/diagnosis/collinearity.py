@@ -117,14 +117,14 @@ class Imitator:
                 ) -> tuple[float, float, np.ndarray]:
         """``cand`` switched on at ``values`` on the recalibrated model: its signature's gap
         [%], the gap [%] the knobs' best imitation leaves of it, and the knobs' moves (natural
-        logs of their factors; linearly, the moves that cancel the effect are the opposite
-        of those that imitate it). Linear unless ``refine``: then the model without the effect
-        is refitted for real to the model with it, the knobs moved from the recalibration's
-        values, the same objective minimised by a bounded trust-region least-squares fit
+        logs of their factors) that cancel it. Linear unless ``refine``: then the model
+        without the effect is refitted for real to the model with it, as a recalibration of
+        records of the effect would move the knobs from the recalibration's values, the same
+        objective minimised by a bounded trust-region least-squares fit
         (:func:`scipy.optimize.least_squares`, the linear check's Jacobian kept) from the
-        linear answer, as a recalibration of
-        records of the effect would move them; the gap left is the model's, not the linear
-        prediction, and the moves are returned negated, as the linear ones."""
+        linear answer; the gap left is the model's, not the linear prediction, and the moves
+        that imitate the effect are returned negated (linearly, the moves that cancel an
+        effect are the opposite of those that imitate it)."""
         on = self._residuals(cand.apply(self.params, dict(values)))
         sig = on - self.base
         delta = self._step(sig)
@@ -148,8 +148,9 @@ class Imitator:
 def imitations(imitator: Imitator, candidates: Sequence[Candidate]) -> dict[str, dict]:
     """For each of ``candidates`` (on the recalibrated model of ``imitator``, a fit of the
     calibration knobs alone): its signature's gap [%], the gap [%] the knobs' best imitation
-    leaves of it (linear, refined near the bar: :meth:`Imitator.imitate`), whether that is below :data:`verdict.NOISE_GAP` (``imitated``) and
-    the factors the imitation moves the knobs to (those moved by :data:`NAMED_MOVE` or more)."""
+    leaves of it (linear, refitted near the bar: :meth:`Imitator.imitate`), whether that is
+    below :data:`verdict.NOISE_GAP` (``imitated``) and the factors the imitation moves the
+    knobs to (those moved by :data:`NAMED_MOVE` or more)."""
     out = {}
     for cand in candidates:
         shown, kept, delta = imitator.imitate(cand, cand.typical)
