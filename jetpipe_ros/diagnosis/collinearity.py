@@ -99,8 +99,8 @@ class Imitator:
         self.jac = calibration_jacobian(prepared, nominal, recalibrated.z, None)
         self.root = math.sqrt(effective_samples(recalibrated.train, prepared.dt) / max(
             recalibrated.train.noise_total, 1e-300))
-        self.design = np.vstack([self.root * self.jac,
-                                 np.diag([1.0 / SPREAD[k] for k in self.knobs])])
+        self.prior = np.array([1.0 / SPREAD[k] for k in self.knobs])  # per ln(factor)
+        self.design = np.vstack([self.root * self.jac, np.diag(self.prior)])
         low = np.array([math.log(k.low / self.factors[k.name]) for k in CALIBRATION.knobs])
         high = np.array([math.log(k.high / self.factors[k.name]) for k in CALIBRATION.knobs])
         self.bounds = (np.minimum(low, 0.0), np.maximum(high, 0.0))  # round-off at a bound
@@ -117,32 +117,34 @@ class Imitator:
                 ) -> tuple[float, float, np.ndarray]:
         """``cand`` switched on at ``values`` on the recalibrated model: its signature's gap
         [%], the gap [%] the knobs' best imitation leaves of it, and the knobs' moves (natural
-        logs of their factors) that cancel it. Linear unless ``refine``: then the model
-        without the effect is refitted for real to the model with it, as a recalibration of
-        records of the effect would move the knobs from the recalibration's values, the same
-        objective minimised by a bounded trust-region least-squares fit
-        (:func:`scipy.optimize.least_squares`, the linear check's Jacobian kept) from the
-        linear answer; the gap left is the model's, not the linear prediction, and the moves
-        that imitate the effect are returned negated (linearly, the moves that cancel an
-        effect are the opposite of those that imitate it)."""
+        logs of their factors) that cancel it. Linear unless ``refine`` and the signature shows
+        while the linear leftover lies within :data:`REFINE_BAND` of :data:`verdict.NOISE_GAP`:
+        then the model without the effect is refitted for real to the model with it, as a
+        recalibration of records of the effect would move the knobs from the recalibration's
+        values, the same objective minimised by a bounded trust-region least-squares fit
+        (:func:`scipy.optimize.least_squares`, the linear check's Jacobian kept) from the linear
+        answer; the gap left is the model's, not the linear prediction, and the moves that
+        imitate the effect are returned negated (linearly, the moves that cancel an effect are
+        the opposite of those that imitate it)."""
         on = self._residuals(cand.apply(self.params, dict(values)))
         sig = on - self.base
         delta = self._step(sig)
-        left = sig + self.jac @ delta
-        if refine:
-            prior = np.diag(self.design[len(sig):])  # 1 / the hardware's spread
+        shown = 100.0 * float(np.linalg.norm(sig))
+        kept = 100.0 * float(np.linalg.norm(sig + self.jac @ delta))  # the linear prediction
+        if refine and shown >= NOISE_GAP and (NOISE_GAP / REFINE_BAND <= kept
+                                              <= NOISE_GAP * REFINE_BAND):
 
             def objective(d: np.ndarray) -> np.ndarray:
                 moved = {k: self.factors[k] * math.exp(x) for k, x in zip(self.knobs, d)}
                 off = self._residuals(CALIBRATION.apply(self.nominal, moved))
-                return np.concatenate([self.root * (off - on), prior * d])
+                return np.concatenate([self.root * (off - on), self.prior * d])
 
             start = np.clip(-delta, *self.bounds)  # the knobs stay in their search ranges
             delta = -least_squares(objective, start, jac=lambda d: self.design,
                                    bounds=self.bounds, xtol=1e-3, ftol=1e-4,
                                    max_nfev=REFINE_RUNS).x
-            left = objective(-delta)[:len(sig)] / self.root
-        return 100.0 * float(np.linalg.norm(sig)), 100.0 * float(np.linalg.norm(left)), delta
+            kept = 100.0 * float(np.linalg.norm(objective(-delta)[:len(sig)])) / self.root
+        return shown, kept, delta
 
 
 def imitations(imitator: Imitator, candidates: Sequence[Candidate]) -> dict[str, dict]:
@@ -153,9 +155,7 @@ def imitations(imitator: Imitator, candidates: Sequence[Candidate]) -> dict[str,
     knobs to (those moved by :data:`NAMED_MOVE` or more)."""
     out = {}
     for cand in candidates:
-        shown, kept, delta = imitator.imitate(cand, cand.typical)
-        if shown >= NOISE_GAP and NOISE_GAP / REFINE_BAND <= kept <= NOISE_GAP * REFINE_BAND:
-            shown, kept, delta = imitator.imitate(cand, cand.typical, refine=True)
+        shown, kept, delta = imitator.imitate(cand, cand.typical, refine=True)
         out[cand.name] = {
             "signature_gap_pct": shown, "left_gap_pct": kept,
             "imitated": shown >= NOISE_GAP > kept,
