@@ -266,6 +266,43 @@ def test_a_candidate_explaining_a_minority_of_a_gap_beyond_noise_is_not_the_caus
     assert s.unlisted and s.final is None
 
 
+@pytest.mark.parametrize("rival_gap, jitter, named", [
+    (0.0896, 3e-7, False),  # leaves 1.06 times the winner's gap, not told apart: none
+    (0.1352, 3e-7, True),   # leaves 1.6 times: the winner's part is its own
+    (0.1000, 1e-9, True),   # 1.18 times, but worse in every window (paired t in the hundreds)
+])
+def test_a_small_gap_taken_alike_by_unrelated_effects_names_none(rng, rival_gap, jitter, named):
+    # Seed 2609's parameters-only actuator with the position alone: after recalibration a hose
+    # took 35 % of a 0.13 % gap (significant), an orifice leak 32 % of it.
+    level = lambda g: FLOOR + (g / 100) ** 2  # noqa: E731
+    base = windows(level(0.13), rng, jitter=jitter)
+    hose = fit("valve_delay:hose", 0.0845, base - level(0.13) + level(0.0845))
+    leak = fit("leakage:orifice", rival_gap, base - level(0.13) + level(rival_gap)
+               + jitter * rng.standard_normal(20))
+    ranking = rank([hose, leak], score(0.13), base, 1e-3)
+    assert ranking[0].fit is hose and ranking[0].explains
+    assert ranking[0].shrinkage == pytest.approx(0.35, abs=0.01)
+    v = decide(ranking, score(0.13), base, None)
+    if named:
+        assert v.winner.fit is hose
+        return
+    assert v.winner is None and v.partial.fit is hose and not v.unexplained
+    assert "leakage:orifice, another effect, removes about as much (31%)" in v.reason
+    assert "evidence for none of them" in v.reason
+    nom = windows(level(1.84), rng)
+    (cal_row,) = rank([fit("calibration", 0.13, base)], score(1.84), nom, 1e-3)
+    s = settle(cal_row, v, decide([], score(1.84), nom, None), None, None, None)
+    assert s.final is cal_row.fit and not s.unlisted
+    assert s.reason.startswith("no unmodelled effect") and "evidence for none of them" in s.reason
+    # A gap beyond noise is not judged so: there a winner removing a minority of it is named
+    # only when what it leaves is within noise (0.65 % -> 0.45 %), the rule it met.
+    big = windows(level(0.65), rng, jitter=jitter)
+    part = fit("valve_delay:hose", 0.45, big - level(0.65) + level(0.45))
+    alike = fit("leakage:orifice", 0.47, big - level(0.65) + level(0.47))
+    assert decide(rank([part, alike], score(0.65), big, 1e-3), score(0.65), big,
+                  None).winner.fit is part
+
+
 def test_a_second_effect_is_named_when_it_pays_on_held_out_data(rng):
     nom = windows(FLOOR + 4e-4, rng)
     single = fit("valve_lag:first_order", 1.0, windows(FLOOR + 1e-4, rng))
