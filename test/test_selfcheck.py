@@ -149,6 +149,22 @@ def test_a_parameters_only_case_needs_the_recalibration():
     assert case.correct
 
 
+def test_a_miss_is_warned_when_the_diagnosis_said_it_could_not_tell_the_truth():
+    """Seed 2609's port lag with the position alone: a hose named, the port lag given as what
+    the experiments cannot tell it from. Still a miss, but a warned one; a verdict that said
+    nothing of the truth is not warned."""
+    result = {"data": {"cannot_judge": {"sensor_dynamics": "no pressure sensor"}},
+              "visibility": {"not_ruled_out": []},
+              "verdict": {"effect": "valve_delay", "ambiguous_with": "valve_lag"}}
+    case = selfcheck.Case(9, "flow_lag", "plant", {"flow_lag": {}}, seed=1,
+                          verdict="valve_delay", not_judged=selfcheck.not_judged(result))
+    assert case.truth == "valve_lag" and not case.correct and case.warned
+    assert case.not_judged == ["sensor_dynamics", "valve_lag"]
+    result["verdict"]["ambiguous_with"] = None
+    case.not_judged = selfcheck.not_judged(result)
+    assert not case.warned
+
+
 def _plant_dataset(root, spec, seed):
     """The small campaign of test_diagnosis recorded on the plant."""
     out = []

@@ -193,8 +193,9 @@ class Case:
     knobs: dict = field(default_factory=dict)  #: the calibration factors it reported
     recalibration_shrinkage: float = 0.0  #: held-out shrinkage of the recalibration alone
     shrinkage: float = 0.0
-    #: effects the diagnosis said these records cannot judge or, answering none, cannot rule
-    #: out (the recalibration imitates them): said, not graded; a miss stays a miss
+    #: effects the diagnosis said these records cannot judge, or, answering none, cannot rule
+    #: out (the recalibration imitates them), or cannot tell from the one it named (its
+    #: ``ambiguous_with``): said, not graded; a miss stays a miss
     not_judged: list = field(default_factory=list)
     gap_nominal: float = 0.0
     gap_augmented: float = 0.0
@@ -238,7 +239,8 @@ class Case:
 
     @property
     def warned(self) -> bool:
-        """The diagnosis said it could not judge, or not rule out, an effect of the truth."""
+        """The diagnosis said it could not judge, not rule out, or not tell from its answer an
+        effect of the truth."""
         return any(e in self.not_judged for e in self.truth.split("+"))
 
     def bench(self) -> ModelParams | PlantSpec:
@@ -366,6 +368,14 @@ class SelfcheckError(ParameterError):
     cases failed; the message names the directory and what to do."""
 
 
+def not_judged(result: dict) -> list[str]:
+    """The effects a diagnosis (its diagnosis.json) said the records cannot judge, cannot rule
+    out (answering none) or cannot tell from the one it named (``verdict.ambiguous_with``)."""
+    ambiguous = result["verdict"].get("ambiguous_with") or ""
+    return sorted({*result["data"]["cannot_judge"], *result["visibility"]["not_ruled_out"],
+                   *ambiguous.split("+")} - {""})
+
+
 def run_case(case: Case, make_dataset: Callable[[ModelParams | PlantSpec, Path, int], None],
              cases_dir: str | None, flow_table: bool = False) -> Case:
     """Record ``case``'s dataset in a temporary directory, diagnose it blind (its fits in this
@@ -408,8 +418,7 @@ def run_case(case: Case, make_dataset: Callable[[ModelParams | PlantSpec, Path, 
         case.gap_nominal, case.gap_augmented = (result["gap"]["nominal"],
                                                 result["gap"]["augmented"])
         case.shrinkage = result["gap"]["shrinkage"]
-        case.not_judged = sorted({*result["data"]["cannot_judge"],
-                                  *result["visibility"]["not_ruled_out"]})
+        case.not_judged = not_judged(result)
         case.seconds = time.perf_counter() - t0
         if cases_dir:
             write_text(out / RESULT, to_json(dataclasses.asdict(case), indent=1))
@@ -711,8 +720,8 @@ def render(summary: dict) -> str:
                      f"{summary['median_knob_error']:.3f}")
     misses = sum(1 for r in summary["results"] if not r["correct"])
     if misses:
-        lines.append(f"- misses where the diagnosis said the records cannot judge or rule out "
-                     f"the true effect: {summary.get('misses_warned', 0)} of {misses} (still "
+        lines.append(f"- misses where the diagnosis said the records cannot judge, rule out or "
+                     f"tell apart the true effect: {summary.get('misses_warned', 0)} of {misses} (still "
                      f"counted as misses)")
     if summary.get("resumed"):
         lines.append(f"- {summary['resumed']} of the cases were finished by an earlier run "
