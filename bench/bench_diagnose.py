@@ -12,8 +12,10 @@ workers, the same bench recorded on the independent plant (``jetpipe_ros.plant``
 spring between rod and frame, a cause on no list: the answer is ``unlisted``, so the diagnosis
 also places the gap (replays of each subsystem, each sensor's and the valve's null refitted,
 the flow map identified afresh), a step only such answers pay for; its own time is measured
-around :func:`jetpipe_ros.diagnosis.placement.place`. Prints markdown tables; compare rows, not
-machines.
+around :func:`jetpipe_ros.diagnosis.placement.place`. Then once the lag's bench logged with the
+position alone (``position_only``), where the recalibration imitates several candidates and the
+check of what it imitates refits near the bar (:mod:`jetpipe_ros.diagnosis.collinearity`): its
+wall time, and that check's own. Prints markdown tables; compare rows, not machines.
 Usage: .venv/bin/python bench/bench_diagnose.py [--repeats 3]
 """
 
@@ -22,6 +24,7 @@ from __future__ import annotations
 import argparse
 import cProfile
 import pstats
+import shutil
 import statistics
 import tempfile
 import time
@@ -32,6 +35,7 @@ from jetpipe_ros import plant
 from jetpipe_ros.campaign import campaign_dataset
 from jetpipe_ros.dataset import read_dataset
 from jetpipe_ros.model import ModelParams
+from jetpipe_ros.plant.logger import log
 from jetpipe_ros.workflows import diagnose
 
 
@@ -52,25 +56,29 @@ def profiled(data: Path, out: Path) -> list[tuple[str, float]]:
     return own
 
 
-def placed(data: Path, out: Path) -> tuple[float, float, dict]:
-    """A diagnosis on 2 workers: its wall time [s], the placement's share of it [s] and its
-    result."""
-    spent = []
-    place = diagnosis_steps.place
+def staged(data: Path, out: Path, stages: tuple[str, ...]) -> tuple[float, dict, dict]:
+    """A diagnosis on 2 workers: its wall time [s], the time [s] spent in each of ``stages``
+    (functions :mod:`jetpipe_ros.diagnosis.diagnose` calls, by name) and its result."""
+    spent = {name: 0.0 for name in stages}
+    originals = {name: getattr(diagnosis_steps, name) for name in stages}
 
-    def timed_place(*args, **kwargs):
-        t0 = time.perf_counter()
-        try:
-            return place(*args, **kwargs)
-        finally:
-            spent.append(time.perf_counter() - t0)
+    def timing(name):
+        def run(*args, **kwargs):
+            t0 = time.perf_counter()
+            try:
+                return originals[name](*args, **kwargs)
+            finally:
+                spent[name] += time.perf_counter() - t0
+        return run
 
-    diagnosis_steps.place = timed_place
+    for name in stages:
+        setattr(diagnosis_steps, name, timing(name))
     try:
         wall, result = timed(data, out, 2)
     finally:
-        diagnosis_steps.place = place
-    return wall, sum(spent), result
+        for name, f in originals.items():
+            setattr(diagnosis_steps, name, f)
+    return wall, spent, result
 
 
 def main() -> None:
@@ -99,7 +107,12 @@ def main() -> None:
         plant.campaign_dataset(plant.PlantSpec(
             nominal.with_values({**bench, "sensors.noise": True}),
             {"load_spring": {"stiffness": 8e3, "free_position": 0.0}}), spring, seed=1)
-        unlisted, placing, found = placed(spring, Path(tmp) / "spring_out")
+        unlisted, placing, found = staged(spring, Path(tmp) / "spring_out", ("place",))
+        position = Path(tmp) / "position"
+        shutil.copytree(data, position)
+        log("position_only", position, 2)
+        alone, imitating, by_position = staged(position, Path(tmp) / "position_out",
+                                               ("imitations", "with_added_sensors"))
     med = statistics.median(walls)
     v = result["verdict"]
     print("| diagnosis, default campaign dataset, recalibration + 9 candidates | value | target |")
@@ -117,9 +130,18 @@ def main() -> None:
           f"{knobs['friction_entry']:.2f}/{knobs['friction_exit']:.2f}, dead volume 1 "
           f"{knobs['dead_volume_1']:.2f} | |")
     print(f"| a load spring (on no list), 2 workers, once: wall | {unlisted:.1f} s | |")
-    print(f"| of it, placing the gap | {placing:.1f} s | |")
+    print(f"| of it, placing the gap | {placing['place']:.1f} s | |")
     print(f"| its verdict (truth: unlisted, mechanics) | {found['verdict']['effect']}, "
           f"{found['verdict']['subsystem']} | |")
+    print(f"| the lag's bench with the position alone, 2 workers, once: wall | {alone:.1f} s "
+          f"| |")
+    print(f"| of it, what the recalibration imitates (refitted near the bar) / with the "
+          f"pressures it lacks | {imitating['imitations']:.1f} s / "
+          f"{imitating['with_added_sensors']:.1f} s | |")
+    pv = by_position["verdict"]
+    print(f"| its verdict (truth: valve_lag 25 Hz) | {pv['effect']}"
+          + (f" {pv['params']['corner_frequency']:.1f} Hz" if "corner_frequency" in pv["params"]
+             else "") + " | |")
     total = sum(t for _, t in own)
     print("\n| where the in-process diagnosis spends its time (own time, cProfile) | s | share |")
     print("|---|---|---|")
