@@ -721,8 +721,8 @@ def render(summary: dict) -> str:
     misses = sum(1 for r in summary["results"] if not r["correct"])
     if misses:
         lines.append(f"- misses where the diagnosis said the records cannot judge, rule out or "
-                     f"tell apart the true effect: {summary.get('misses_warned', 0)} of {misses} (still "
-                     f"counted as misses)")
+                     f"tell apart the true effect: {summary.get('misses_warned', 0)} of "
+                     f"{misses} (still counted as misses)")
     if summary.get("resumed"):
         lines.append(f"- {summary['resumed']} of the cases were finished by an earlier run "
                      f"(resumed); the time above is this run's")
