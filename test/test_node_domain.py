@@ -12,7 +12,10 @@ import pytest
 from jetpipe_ros.nodes.domain import DomainError, discovery_port, reserve_domain
 
 
-def test_held_domains_are_never_handed_out_twice(tmp_path):
+def test_held_domains_are_never_handed_out_twice(tmp_path, monkeypatch):
+    # The lock files alone: the suite's ROS tests, run beside this one, may hold a domain in
+    # 1-10 with its discovery ports bound (seen on Jazzy in .ci/run), which is not this test's.
+    monkeypatch.setattr("jetpipe_ros.nodes.domain._ports_free", lambda domain: True)
     held = [reserve_domain(range(1, 11), tmp_path) for _ in range(10)]
     assert sorted(r.domain for r in held) == list(range(1, 11))
     with pytest.raises(DomainError, match="no free ROS domain among 10"):
