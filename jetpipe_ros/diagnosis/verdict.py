@@ -237,11 +237,17 @@ def _pays(fitted: Fit, against: Fit, floor_windows: np.ndarray | None) -> bool:
     (paired t >= :data:`MIN_T` over the windows, or more than the whole noise floor)."""
     left = against.holdout
     shrink = 1.0 - fitted.holdout.gap / left.gap if left.gap > 0 else 0.0
-    t = paired_t(against.holdout_windows, fitted.holdout_windows)
-    removed = (left.total - fitted.holdout.total) / max(left.noise_total, 1e-300)
     enough = MOSTLY if left_beyond_noise(fitted.holdout, fitted.holdout_windows,
                                          floor_windows) else MIN_SHRINKAGE
-    return shrink >= enough and (t >= MIN_T or removed >= 1.0)
+    return shrink >= enough and significantly_better(fitted, against, left.noise_total)
+
+
+def significantly_better(fitted: Fit, against: Fit, noise_total: float) -> bool:
+    """True when ``fitted``'s held-out advantage over ``against`` is itself significant: paired
+    t >= :data:`MIN_T` over the windows, or more error removed than the whole noise floor
+    (``noise_total``, the mean normalised noise variance)."""
+    t = paired_t(against.holdout_windows, fitted.holdout_windows)
+    return t >= MIN_T or against.holdout.total - fitted.holdout.total >= noise_total
 
 
 def left_out(r: Ranked, ranking: Sequence[Ranked], floor_windows: np.ndarray | None
@@ -338,11 +344,11 @@ def decide(ranking: Sequence[Ranked], base: Score, base_windows: np.ndarray,
 
     Under that bar, a winner that removes less than :data:`MOSTLY` of the gap is not named when
     an effect it does not share leaves within :data:`AMBIGUOUS` times its gap and the winner's
-    advantage is not significant (:func:`told_apart`): what unrelated effects take alike is a
-    part of the remainder any added freedom bends to, evidence for none of them. Seen with the
-    position alone on seed 2609's parameters-only actuator: after recalibration a hose took 35 %
-    of a 0.13 % gap (significant only with its cross-check), an orifice leak 32 %, a second-order
-    valve lag 29 %, a power-law leak 22 %. The right namings of small gaps on the same
+    advantage is not significant (:func:`significantly_better`): what unrelated effects take
+    alike is a part of the remainder any added freedom bends to, evidence for none of them. Seen
+    with the position alone on seed 2609's parameters-only actuator: after recalibration a hose
+    took 35 % of a 0.13 % gap (significant only with its cross-check), an orifice leak 32 %, a
+    second-order valve lag 29 %, a power-law leak 22 %. The right namings of small gaps on the same
     development records (seeds 2609, 3137, 4099, 7103: elasto-plastic friction, the measured
     seal, a drooping supply with the position alone) had no unrelated rival within 1.5 times the
     winner's gap. Above the bar a minority is named only when it leaves the gap within noise,
@@ -381,7 +387,7 @@ def decide(ranking: Sequence[Ranked], base: Score, base_windows: np.ndarray,
     ambiguous = False
     if runner is not None:
         close = runner.fit.holdout.gap <= AMBIGUOUS * max(win.fit.holdout.gap, 1e-6)
-        apart = told_apart(win, runner, base)
+        apart = significantly_better(win.fit, runner.fit, base.noise_total)
         if not gap_left and win.shrinkage < MOSTLY and close and not apart:
             return Verdict(None, _clip(1.0 - best_shrink),
                            f"the held-out gap ({base.gap:.2f} %) is within what sensor noise "
@@ -423,15 +429,6 @@ def decide(ranking: Sequence[Ranked], base: Score, base_windows: np.ndarray,
         reason += (f"; {runner.fit.name} explains the data almost as well "
                    f"({runner.shrinkage:.0%}): these experiments cannot tell them apart")
     return Verdict(win, confidence, reason, runner, ambiguous)
-
-
-def told_apart(win: Ranked, runner: Ranked, base: Score) -> bool:
-    """True when the winner's held-out advantage over the runner-up is itself significant:
-    paired t >= :data:`MIN_T` over the windows, or more error removed than the base's whole
-    noise floor."""
-    t_sep = paired_t(runner.fit.holdout_windows, win.fit.holdout_windows)
-    return (t_sep >= MIN_T
-            or runner.fit.holdout.total - win.fit.holdout.total >= base.noise_total)
 
 
 def confidence_of(win: Ranked, runner_gap: float | None) -> float:
@@ -551,7 +548,7 @@ def settle(calibration: Ranked, on_cal: Verdict, alone: Verdict, given: Ranked |
         reason = (f"{NO_EFFECT}the nominal parameters are off ({cal_words}); "
                   f"recalibrated, the held-out gap shrinks from {calibration.base_gap:.2f} % "
                   f"to {calibration.fit.holdout.gap:.2f} %")
-        if on_cal.partial is not None:  # taken alike by unrelated effects (decide)
+        if on_cal.partial is not None:  # a candidate took part of it, not named (decide)
             reason += f"; on top of the recalibration, {on_cal.reason}"
         if alt is not None and alt.fit.holdout.gap <= AMBIGUOUS * calibration.fit.holdout.gap:
             reason += (f"; {alt.fit.name} alone explains the data almost as well (held-out "
