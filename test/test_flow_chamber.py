@@ -5,7 +5,8 @@ import pytest
 from scipy import optimize
 
 from jetpipe_ros.model.chamber import chamber_volumes, pressure_rates
-from jetpipe_ros.model.flow import chamber_inflow, flow_matrix, flow_polynomial, mass_flow
+from jetpipe_ros.model.flow import (FlowLaw, chamber_inflow, flow_matrix, flow_polynomial,
+                                    mass_flow)
 from jetpipe_ros.model.params import FLOW_COEFFICIENTS
 
 COEF = np.array(FLOW_COEFFICIENTS)
@@ -73,10 +74,12 @@ def test_flow_gains_scale_each_direction_and_keep_the_null():
     q_in = chamber_inflow(COEF, 1.0, 3e5, 1e6)
     q_out = chamber_inflow(COEF, -1.0, 6e5, 1e6)
     assert q_in > 0 > q_out
-    assert chamber_inflow(COEF, 1.0, 3e5, 1e6, 1e5, 0.9, 1.2) == pytest.approx(0.9 * q_in)
-    assert chamber_inflow(COEF, -1.0, 6e5, 1e6, 1e5, 0.9, 1.2) == pytest.approx(1.2 * q_out)
+    gains = FlowLaw(gain_charge=0.9, gain_discharge=1.2)
+    assert chamber_inflow(COEF, 1.0, 3e5, 1e6, gains) == pytest.approx(0.9 * q_in)
+    assert chamber_inflow(COEF, -1.0, 6e5, 1e6, gains) == pytest.approx(1.2 * q_out)
     # The null pressure of q(0, p) (4.165 bar) does not move with the gains.
-    root = optimize.brentq(lambda p: chamber_inflow(COEF, 0.0, p, 1e6, 1e5, 0.7, 1.3), 2e5, 8e5)
+    others = FlowLaw(gain_charge=0.7, gain_discharge=1.3)
+    root = optimize.brentq(lambda p: chamber_inflow(COEF, 0.0, p, 1e6, others), 2e5, 8e5)
     assert root == pytest.approx(4.165e5, rel=1e-3)
 
 
@@ -90,15 +93,16 @@ def test_a_lower_supply_moves_the_null_and_the_flow_by_the_laws_reference(refere
     """At 7 bar the null of q(0, p) (4.165 bar at 10) lies at the reference plus the nominal
     null's excess over it times (7 bar - ref) / (10 bar - ref), and a flow read at the mapped
     pressure is scaled by the same span."""
-    root = optimize.brentq(lambda p: chamber_inflow(COEF, 0.0, p, 7e5, reference), 1.5e5, 6e5)
+    root = optimize.brentq(lambda p: chamber_inflow(COEF, 0.0, p, 7e5, FlowLaw(reference)),
+                           1.5e5, 6e5)
     assert root == pytest.approx(null_bar * 1e5, rel=1e-3)
     # chamber 1 at the pressure that maps onto 3 bar at 10 bar: the flow is Eq. 8's there,
     # times the span
     p = reference + (3e5 - reference) * scale
-    assert chamber_inflow(COEF, 2.0, p, 7e5, reference) == pytest.approx(
+    assert chamber_inflow(COEF, 2.0, p, 7e5, FlowLaw(reference)) == pytest.approx(
         scale * flow_polynomial(COEF, 2.0, 3.0), rel=1e-9)
     # at the nominal supply the reference changes nothing: Eq. 8
-    assert chamber_inflow(COEF, 2.0, 3e5, 1e6, reference) == pytest.approx(
+    assert chamber_inflow(COEF, 2.0, 3e5, 1e6, FlowLaw(reference)) == pytest.approx(
         flow_polynomial(COEF, 2.0, 3.0), rel=1e-12)
 
 

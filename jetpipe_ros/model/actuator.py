@@ -16,7 +16,8 @@ from typing import Any
 import numpy as np
 
 from jetpipe_ros.model import kernel
-from jetpipe_ros.model.flow import GAMMA_AIR, P_ATM, P_SUPPLY_NOMINAL, flow_lag_matrix
+from jetpipe_ros.model.flow import (GAMMA_AIR, P_ATM, P_SUPPLY_NOMINAL, FlowLaw,
+                                    flow_lag_matrix)
 from jetpipe_ros.model.friction import FRICTION_FORMS, MAXWELL_SLIP, STATIC, element_slips
 from jetpipe_ros.model.hose import hose_constants, inner_steps
 from jetpipe_ros.model.params import ModelParams
@@ -100,10 +101,11 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
         delay_samples=valve.delay_samples,
         hysteresis=hysteresis,
         flow_coef=flow_map(p),
-        gain_charge=p["flow.gain_charge"], gain_discharge=p["flow.gain_discharge"],
+        flow_law=FlowLaw(reference=effect("supply_pressure", "reference", P_ATM),
+                         gain_charge=p["flow.gain_charge"],
+                         gain_discharge=p["flow.gain_discharge"]),
         valve_gain=p["valve.gain"],
         p_supply=effect("supply_pressure", "pressure", P_SUPPLY_NOMINAL),
-        p_reference=effect("supply_pressure", "reference", P_ATM),
         line_conductance=p["effects.supply_pressure.line_conductance"] if line else 0.0,
         line_volume=p["effects.supply_pressure.line_volume"],
         flow_lag=flow_lag, line_delay=line_delay * substeps / dt,

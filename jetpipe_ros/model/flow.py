@@ -25,6 +25,8 @@ flow after the map (:func:`flow_lag_matrix`, :func:`flow_lag_step`).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import math
 
 import numpy as np
@@ -171,30 +173,45 @@ def mass_flow(coef: np.ndarray, u: np.ndarray | float, p_bar: np.ndarray | float
     return g * KG_PER_G
 
 
+class FlowLaw(NamedTuple):
+    """How an individual valve's flow follows Eq. 8 (numbers only, so that the compiled kernel
+    passes it by value, without reference counting).
+
+    ``reference`` [Pa] is the pressure the map keeps its shape relative to when the supply
+    differs from 10 bar (0 to p_atm, module docstring); ``gain_charge`` and ``gain_discharge``
+    multiply the flow where it fills (q > 0) and empties (q < 0) a chamber: an individual
+    valve's map differs from the paper's by a factor per direction."""
+
+    reference: float = P_ATM
+    gain_charge: float = 1.0
+    gain_discharge: float = 1.0
+
+
+#: The paper's valve: Eq. 8 as identified.
+PAPER_LAW = FlowLaw()
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def chamber_inflow(coef: np.ndarray, u: float, p: float, p_supply: float,
-                   p_reference: float = P_ATM, gain_charge: float = 1.0,
-                   gain_discharge: float = 1.0) -> float:
+                   law: FlowLaw = PAPER_LAW) -> float:
     """Mass flow [kg/s] into a chamber at pressure ``p`` [Pa] for equivalent voltage ``u`` [V].
 
-    ``p_supply`` [Pa] is the actual supply, ``p_reference`` [Pa] the pressure the map keeps its
-    shape relative to when the supply differs (0 to p_atm, module docstring); at 10 bar this is
-    Eq. 8 with p clamped to [1, 10] bar and no outflow at or below atmospheric pressure.
-    ``gain_charge`` and ``gain_discharge`` multiply the flow where it fills (q > 0) and empties
-    (q < 0) the chamber: an individual valve's flow map differs from the paper's by a factor per
-    direction. ``coef`` is the flow map: Eq. 8's 21 coefficients, optionally followed by the
+    ``p_supply`` [Pa] is the actual supply; ``law`` (:class:`FlowLaw`) how the map follows it
+    and how this valve's flow differs from the paper's per direction. With the paper's law at
+    10 bar this is Eq. 8 with p clamped to [1, 10] bar and no outflow at or below atmospheric
+    pressure. ``coef`` is the flow map: Eq. 8's 21 coefficients, optionally followed by the
     correction table (:func:`table_flow`), added before the gains.
     """
-    span = (p_supply - p_reference) / (P_SUPPLY_NOMINAL - p_reference)
-    p_map = (p_reference + (p - p_reference) / span) * 1e-5
+    span = (p_supply - law.reference) / (P_SUPPLY_NOMINAL - law.reference)
+    p_map = (law.reference + (p - law.reference) / span) * 1e-5
     p_map = min(max(p_map, 1.0), 10.0)
     q = flow_polynomial(coef, u, p_map)
     if coef.shape[0] > N_TERMS:
         q += table_flow(coef, u, p_map)
     q *= span
     if q < 0.0:
-        return 0.0 if p <= P_ATM else gain_discharge * q
-    return gain_charge * q
+        return 0.0 if p <= P_ATM else law.gain_discharge * q
+    return law.gain_charge * q
 
 
 #: Heat capacity ratio of air.

@@ -55,7 +55,7 @@ from numba import njit
 
 from jetpipe_ros.model.chamber import (chamber_volumes, pressure_rates,
                                       pressure_temperature_rates)
-from jetpipe_ros.model.flow import (GAMMA_AIR, P_ATM, chamber_inflow, flow_lag_step,
+from jetpipe_ros.model.flow import (GAMMA_AIR, P_ATM, FlowLaw, chamber_inflow, flow_lag_step,
                                     orifice_flow, power_leak)
 from jetpipe_ros.model.hose import HOSE_STATES, hose_step
 from jetpipe_ros.model.port import port_step
@@ -104,11 +104,9 @@ class Constants(NamedTuple):
     delay_samples: int  #: whole samples of the valve's transport delay
     hysteresis: np.ndarray  #: play thresholds [V], one per element; empty = off
     flow_coef: np.ndarray  #: the flow map: Eq. 8's coefficients, then its correction table
-    gain_charge: float  #: factor on the flow filling a chamber
-    gain_discharge: float  #: factor on the flow emptying a chamber
+    flow_law: FlowLaw  #: how the map follows the supply, its gains per direction (flow.py)
     valve_gain: float  #: u_eq per u_f (jet-pipe deflection per volt relative to Eq. 5)
     p_supply: float  #: supply pressure [Pa] (with the line: the set pressure feeding it)
-    p_reference: float  #: pressure the flow map keeps its shape relative to [Pa] (flow.py)
     line_conductance: float  #: supply line conductance [kg/(s Pa)], 0 = constant supply
     line_volume: float  #: supply line volume [m^3]
     flow_lag: np.ndarray  #: the flow lag over a sub-step (:func:`flow.flow_lag_matrix`, (3, 3));
@@ -279,12 +277,11 @@ def _valve_pass(c: Constants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _valve_flows(coef: np.ndarray, u_eq: float, p1: float, p2: float, p_supply: float,
-                 p_reference: float, gain_charge: float, gain_discharge: float
-                 ) -> tuple[float, float, float]:
+                 law: FlowLaw) -> tuple[float, float, float]:
     """The valve's flows into chambers 1 and 2 [kg/s] (Eq. 8, the jet deflected by ``u_eq``
     [V] toward chamber 1) and what it draws from the supply [kg/s]: the flows that fill."""
-    q1 = chamber_inflow(coef, u_eq, p1, p_supply, p_reference, gain_charge, gain_discharge)
-    q2 = chamber_inflow(coef, -u_eq, p2, p_supply, p_reference, gain_charge, gain_discharge)
+    q1 = chamber_inflow(coef, u_eq, p1, p_supply, law)
+    q2 = chamber_inflow(coef, -u_eq, p2, p_supply, law)
     return q1, q2, max(q1, 0.0) + max(q2, 0.0)
 
 
@@ -405,8 +402,7 @@ def _passage_close(c: Constants, pressurise: bool, line: bool, line_decay: float
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _port_substep(coef: np.ndarray, u: float, p_s: float, p_reference: float,
-                  gain_charge: float, gain_discharge: float, p_p: float, p_c: float,
+def _port_substep(coef: np.ndarray, u: float, p_s: float, law: FlowLaw, p_p: float, p_c: float,
                   rate_c: float, gain_c: float, port_rate: float, area: float, index: float,
                   rt: float, h: float
                   ) -> tuple[float, float, float, float]:
@@ -414,20 +410,18 @@ def _port_substep(coef: np.ndarray, u: float, p_s: float, p_reference: float,
     ``u`` [V] reading the port's pressure ``p_p`` [Pa] (its slope by a finite difference).
     Returns the new port and chamber pressures, the mean flow into the chamber and the mean
     flow leaving the valve [kg/s]."""
-    q = chamber_inflow(coef, u, p_p, p_s, p_reference, gain_charge, gain_discharge)
-    slope = (chamber_inflow(coef, u, p_p + HOSE_SLOPE_STEP, p_s, p_reference, gain_charge,
-                            gain_discharge) - q) / HOSE_SLOPE_STEP
+    q = chamber_inflow(coef, u, p_p, p_s, law)
+    slope = (chamber_inflow(coef, u, p_p + HOSE_SLOPE_STEP, p_s, law) - q) / HOSE_SLOPE_STEP
     p_p, p_c, into, sent = port_step(p_p, p_c, q, slope, rate_c, gain_c, port_rate, area, index,
                                      rt, h)
     return max(p_p, MIN_PRESSURE), p_c, into, sent
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _hose_substep(coef: np.ndarray, u: float, p_s: float, p_reference: float,
-                  gain_charge: float, gain_discharge: float, q_given: float, p0: float,
-                  p1: float, w0: float, w1: float, p_c: float, rate_c: float, gain_c: float,
-                  node_rate: float,
-                  accel: float, laminar: float, turbulent: float, h: float, steps: int
+def _hose_substep(coef: np.ndarray, u: float, p_s: float, law: FlowLaw, q_given: float,
+                  p0: float, p1: float, w0: float, w1: float, p_c: float, rate_c: float,
+                  gain_c: float, node_rate: float, accel: float, laminar: float,
+                  turbulent: float, h: float, steps: int
                   ) -> tuple[float, float, float, float, float, float, float]:
     """A hose and its chamber over a sub-step ``h`` [s] in ``steps`` inner steps
     (:func:`hose.hose_step`): the map at ``u`` [V] reads the hose's valve end, or with a finite
@@ -439,9 +433,9 @@ def _hose_substep(coef: np.ndarray, u: float, p_s: float, p_reference: float,
     mapped = not math.isfinite(q_given)
     for _ in range(steps):
         if mapped:
-            q = chamber_inflow(coef, u, p0, p_s, p_reference, gain_charge, gain_discharge)
-            slope = (chamber_inflow(coef, u, p0 + HOSE_SLOPE_STEP, p_s, p_reference, gain_charge,
-                                    gain_discharge) - q) / HOSE_SLOPE_STEP
+            q = chamber_inflow(coef, u, p0, p_s, law)
+            slope = (chamber_inflow(coef, u, p0 + HOSE_SLOPE_STEP, p_s, law)
+                     - q) / HOSE_SLOPE_STEP
         else:
             q, slope = q_given, 0.0
         slope = min(slope, 0.0)
@@ -525,18 +519,15 @@ def chamber_rates(c: Constants, y: np.ndarray, v: np.ndarray, p1: np.ndarray, p2
                 given1 = given2 = math.nan
                 if lag.shape[0]:
                     given1, given2, _ = _valve_flows(c.flow_coef, u_eq[k], hose[0, 0],
-                                                     hose[1, 0], p_s, c.p_reference, c.gain_charge,
-                                                     c.gain_discharge)
+                                                     hose[1, 0], p_s, c.flow_law)
                     given1, f1, r1 = _lagged_flow(lag, f1, r1, given1, hose[0, 0])
                     given2, f2, r2 = _lagged_flow(lag, f2, r2, given2, hose[1, 0])
                 for i, (sign, p, given) in enumerate(((1.0, p1[k], given1),
                                                       (-1.0, p2[k], given2))):
                     hose[i, 0], hose[i, 1], hose[i, 2], hose[i, 3], _, m, d = _hose_substep(
-                        c.flow_coef, sign * u_eq[k], p_s, c.p_reference, c.gain_charge,
-                        c.gain_discharge, given, hose[i, 0], hose[i, 1], hose[i, 2],
-                        hose[i, 3], p, 0.0, 0.0,
-                        c.hose_rate, c.hose_accel, c.hose_laminar, c.hose_turbulent, h,
-                        c.hose_steps)
+                        c.flow_coef, sign * u_eq[k], p_s, c.flow_law, given, hose[i, 0],
+                        hose[i, 1], hose[i, 2], hose[i, 3], p, 0.0, 0.0, c.hose_rate,
+                        c.hose_accel, c.hose_laminar, c.hose_turbulent, h, c.hose_steps)
                     if i == 0:
                         q1 += m / c.substeps
                     else:
@@ -547,9 +538,8 @@ def chamber_rates(c: Constants, y: np.ndarray, v: np.ndarray, p1: np.ndarray, p2
             for _ in range(c.substeps):
                 for i, (sign, p) in enumerate(((1.0, p1[k]), (-1.0, p2[k]))):
                     port[i], _, m, d = _port_substep(
-                        c.flow_coef, sign * u_eq[k], p_s, c.p_reference, c.gain_charge,
-                        c.gain_discharge, port[i], p, 0.0, 0.0, c.port_rate, c.port_area,
-                        c.port_index, c.rt, h)
+                        c.flow_coef, sign * u_eq[k], p_s, c.flow_law, port[i], p, 0.0, 0.0,
+                        c.port_rate, c.port_area, c.port_index, c.rt, h)
                     if i == 0:
                         q1 += m / c.substeps
                     else:
@@ -557,11 +547,9 @@ def chamber_rates(c: Constants, y: np.ndarray, v: np.ndarray, p1: np.ndarray, p2
                     drawn += max(d, 0.0) / c.substeps
         elif rows_back > 0.0:
             q1, q2, drawn = _valve_flows(c.flow_coef, u_eq[k], _row_at(p1, k - rows_back),
-                                         _row_at(p2, k - rows_back), p_s, c.p_reference,
-                                         c.gain_charge, c.gain_discharge)
+                                         _row_at(p2, k - rows_back), p_s, c.flow_law)
         else:
-            q1, q2, drawn = _valve_flows(c.flow_coef, u_eq[k], p1[k], p2[k], p_s, c.p_reference,
-                                         c.gain_charge, c.gain_discharge)
+            q1, q2, drawn = _valve_flows(c.flow_coef, u_eq[k], p1[k], p2[k], p_s, c.flow_law)
         if lag.shape[0] and c.hose_steps == 0:
             m1, m2 = 0.0, 0.0
             for _ in range(c.substeps):
@@ -582,13 +570,10 @@ def chamber_rates(c: Constants, y: np.ndarray, v: np.ndarray, p1: np.ndarray, p2
             y[k], v[k], p1[k], p2[k], c.t_wall, c.t_wall)
         for i, (sign, p) in enumerate(((1.0, p1[k]), (-1.0, p2[k]))):
             u = sign * u_eq[k]
-            out[2 + i, k] = chamber_inflow(c.flow_coef, u, p, p_s, c.p_reference, c.gain_charge,
-                                           c.gain_discharge)
+            out[2 + i, k] = chamber_inflow(c.flow_coef, u, p, p_s, c.flow_law)
             out[4 + i, k] = sign * (
-                chamber_inflow(c.flow_coef, u + du, p, p_s, c.p_reference, c.gain_charge,
-                               c.gain_discharge)
-                - chamber_inflow(c.flow_coef, u - du, p, p_s, c.p_reference, c.gain_charge,
-                                 c.gain_discharge)) / (2.0 * du)
+                chamber_inflow(c.flow_coef, u + du, p, p_s, c.flow_law)
+                - chamber_inflow(c.flow_coef, u - du, p, p_s, c.flow_law)) / (2.0 * du)
         if line:
             p_s = supply_step(p_s, c.p_supply, c.line_conductance, drawn, decay)
     return out
@@ -603,12 +588,13 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
     ``u_eq`` [V] holds the equivalent voltage of every sub-step (:func:`_valve_pass`);
     ``f_load``, ``drive``, ``noise`` and ``out`` are row-aligned with ``u`` (see
     :func:`advance`). Within a sample the state lives in local variables. The inlined helpers
-    take arrays and numbers, not ``c``: passing a tuple that holds arrays to an inlined
-    function costs reference counting (atomic operations) on every sub-step.
+    take arrays and numbers (a :class:`FlowLaw` holds numbers only), not ``c``: passing a tuple
+    that holds arrays to an inlined function costs reference counting (atomic operations) on
+    every sub-step.
     """
     ns = c.substeps
     h = c.dt / ns
-    coef = c.flow_coef
+    coef, law = c.flow_coef, c.flow_law
     planes = c.planes
     sensor_w = 1.0 - math.exp(-h / c.sensor_tau) if c.sensor_tau > 0.0 else 0.0
     line = c.line_conductance > 0.0
@@ -660,22 +646,21 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
             if flows and hose_on:
                 q1 = q2 = math.nan
                 if lagged:
-                    q1, q2, _ = _valve_flows(coef, u_eq[s], x[first_row], x[hose_2], p_s,
-                                             c.p_reference, c.gain_charge, c.gain_discharge)
+                    q1, q2, _ = _valve_flows(coef, u_eq[s], x[first_row], x[hose_2], p_s, law)
                     q1, f1, r1 = _lagged_flow(lag, f1, r1, q1, x[first_row])
                     q2, f2, r2 = _lagged_flow(lag, f2, r2, q2, x[hose_2])
                 rate1, rate2, gain1, gain2 = _passage_response(c, pressurise, y, v, p1, p2, t1,
                                                                t2)
                 a = first_row
                 x[a], x[a + 1], x[a + 2], x[a + 3], p1_new, m1, d1 = _hose_substep(
-                    coef, u_eq[s], p_s, c.p_reference, c.gain_charge, c.gain_discharge, q1, x[a],
-                    x[a + 1], x[a + 2], x[a + 3], p1, rate1, gain1, c.hose_rate, c.hose_accel,
-                    c.hose_laminar, c.hose_turbulent, h, c.hose_steps)
+                    coef, u_eq[s], p_s, law, q1, x[a], x[a + 1], x[a + 2], x[a + 3], p1, rate1,
+                    gain1, c.hose_rate, c.hose_accel, c.hose_laminar, c.hose_turbulent, h,
+                    c.hose_steps)
                 a = hose_2
                 x[a], x[a + 1], x[a + 2], x[a + 3], p2_new, m2, d2 = _hose_substep(
-                    coef, -u_eq[s], p_s, c.p_reference, c.gain_charge, c.gain_discharge, q2, x[a],
-                    x[a + 1], x[a + 2], x[a + 3], p2, rate2, gain2, c.hose_rate, c.hose_accel,
-                    c.hose_laminar, c.hose_turbulent, h, c.hose_steps)
+                    coef, -u_eq[s], p_s, law, q2, x[a], x[a + 1], x[a + 2], x[a + 3], p2, rate2,
+                    gain2, c.hose_rate, c.hose_accel, c.hose_laminar, c.hose_turbulent, h,
+                    c.hose_steps)
                 p1, p2, t1, t2, p_s = _passage_close(c, pressurise, line, line_decay, m1, m2,
                                                      d1, d2, p1_new, p2_new, y, v, p1, p2,
                                                      t1, t2, p_s, h)
@@ -683,11 +668,11 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
                 rate1, rate2, gain1, gain2 = _passage_response(c, pressurise, y, v, p1, p2, t1,
                                                                t2)
                 pp1, p1_new, m1, d1 = _port_substep(
-                    coef, u_eq[s], p_s, c.p_reference, c.gain_charge, c.gain_discharge, pp1, p1,
-                    rate1, gain1, c.port_rate, c.port_area, c.port_index, c.rt, h)
+                    coef, u_eq[s], p_s, law, pp1, p1, rate1, gain1, c.port_rate, c.port_area,
+                    c.port_index, c.rt, h)
                 pp2, p2_new, m2, d2 = _port_substep(
-                    coef, -u_eq[s], p_s, c.p_reference, c.gain_charge, c.gain_discharge, pp2, p2,
-                    rate2, gain2, c.port_rate, c.port_area, c.port_index, c.rt, h)
+                    coef, -u_eq[s], p_s, law, pp2, p2, rate2, gain2, c.port_rate, c.port_area,
+                    c.port_index, c.rt, h)
                 p1, p2, t1, t2, p_s = _passage_close(c, pressurise, line, line_decay, m1, m2,
                                                      d1, d2, p1_new, p2_new, y, v, p1, p2,
                                                      t1, t2, p_s, h)
@@ -700,11 +685,9 @@ def _physics_pass(c: Constants, x: np.ndarray, u: np.ndarray, u_eq: np.ndarray,
                     old = first_row + LINE_COLUMNS * ((slot - back - 1 + rows) % rows)
                     q1, q2, drawn = _valve_flows(
                         coef, u_eq[s], theta * x[old + LINE_P1] + (1.0 - theta) * x[new + LINE_P1],
-                        theta * x[old + LINE_P2] + (1.0 - theta) * x[new + LINE_P2], p_s,
-                        c.p_reference, c.gain_charge, c.gain_discharge)
+                        theta * x[old + LINE_P2] + (1.0 - theta) * x[new + LINE_P2], p_s, law)
                 else:
-                    q1, q2, drawn = _valve_flows(coef, u_eq[s], p1, p2, p_s, c.p_reference,
-                                                 c.gain_charge, c.gain_discharge)
+                    q1, q2, drawn = _valve_flows(coef, u_eq[s], p1, p2, p_s, law)
                 if lagged:
                     q1, f1, r1 = _lagged_flow(lag, f1, r1, q1, p1)
                     q2, f2, r2 = _lagged_flow(lag, f2, r2, q2, p2)
