@@ -129,8 +129,10 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
     the knobs it carries back at nominal (with those at a bound, if any, as above), and only
     from there, with the larger budget :data:`CARRIER_BUDGET`: from the starts above, which
     hold its volume in those knobs, the joint fit of the hose did not move the held-out gap
-    (to 0.01 %) on any of the eight development records. Returns the fits alone by candidate,
-    and the calibrated fits."""
+    (to 0.01 %) on any of the eight development records. Those refits do not wait for the
+    others: they run in the same batch (the longest jobs first, so that neither worker idles at
+    its end), and are made again only when a knob at a bound turns out suspect. Returns the
+    fits alone by candidate, and the calibrated fits."""
     progress(f"fitting {len(names)} candidates alone and on the recalibrated model")
     sensors = fitter.prepared.sensors
     n = len(names)
@@ -152,9 +154,18 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
                 best[j.name] = j
 
     plain = [(e, f) for e, f in todo if not CANDIDATES[e].carries]
-    keep(fitter.run([Job(nominal, f.groups, _inside(e, f.z, sensors), JOINT_BUDGET)
-                     for e, f in plain],
-                    [f"{e} + calibration, jointly" for e, _ in plain]))
+    # The carriers' refits from their knobs at nominal run beside the others, the longest
+    # first; they are kept unless a knob at a bound turns out suspect (below), when they are
+    # made again with that knob at nominal too.
+    early = [(e, f, [k.name for k in CALIBRATION.knobs if k.name in CANDIDATES[e].carries])
+             for e, f in todo if CANDIDATES[e].carries]
+    fits = fitter.run(
+        [_from_nominal(nominal, cal, e, f, reset, sensors) for e, f, reset in early]
+        + [Job(nominal, f.groups, _inside(e, f.z, sensors), JOINT_BUDGET) for e, f in plain],
+        [_from_nominal_label(e, reset) for e, _, reset in early]
+        + [f"{e} + calibration, jointly" for e, _ in plain])
+    carried = fits[:len(early)]
+    keep(fits[len(early):])
     left = min((f.train.gap for f in best.values()), default=0.0)
     own = [(e, f) for e, f in plain if _removed(nom_train, alone[e].train) >= JOINT_MIN]
     if own and left >= NOISE_GAP:
@@ -173,17 +184,29 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
                  f"refitting from there back at nominal")
     again = [(e, f, [k.name for k in CALIBRATION.knobs
                      if k.name in suspect or k.name in CANDIDATES[e].carries])
-             for e, f in todo]
+             for e, f in todo if suspect or not CANDIDATES[e].carries]
     again = [(e, f, reset) for e, f, reset in again if reset]
-    keep(fitter.run([Job(nominal, f.groups, None,
-                         CARRIER_BUDGET if CANDIDATES[e].carries else JOINT_BUDGET,
-                         grid_base=np.concatenate([[k.to_unit(k.off) if k.name in reset else z
-                                                    for k, z in zip(CALIBRATION.knobs, cal.z)],
-                                                   calibration.group(e, sensors).start()]))
-                     for e, f, reset in again],
-        [f"{e} + calibration, jointly, {', '.join(reset)} from nominal"
-         for e, _, reset in again]))
+    keep(fitter.run([_from_nominal(nominal, cal, e, f, reset, sensors) for e, f, reset in again],
+                    [_from_nominal_label(e, reset) for e, _, reset in again]))
+    if not suspect:
+        keep(carried)
     return alone, [best[f.name] for f in onto]
+
+
+def _from_nominal(nominal: ModelParams, cal: Fit, e: str, f: Fit, reset: Sequence[str],
+                  sensors: Sequence[str]) -> Job:
+    """The joint refit of candidate ``e`` (its fit ``f`` on the recalibrated model ``cal``)
+    from the recalibration with the knobs ``reset`` back at nominal, the candidate's first knob
+    searched on a grid there (:func:`fit.fit`)."""
+    return Job(nominal, f.groups, None,
+               CARRIER_BUDGET if CANDIDATES[e].carries else JOINT_BUDGET,
+               grid_base=np.concatenate([[k.to_unit(k.off) if k.name in reset else z
+                                          for k, z in zip(CALIBRATION.knobs, cal.z)],
+                                         calibration.group(e, sensors).start()]))
+
+
+def _from_nominal_label(e: str, reset: Sequence[str]) -> str:
+    return f"{e} + calibration, jointly, {', '.join(reset)} from nominal"
 
 
 def _inside(name: str, z: np.ndarray, sensors: Sequence[str]) -> np.ndarray:
