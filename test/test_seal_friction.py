@@ -703,3 +703,9 @@ def test_the_report_gives_the_parameters_in_units_and_marks_those_a_bound_set():
     assert rows["pre-sliding displacement delta"] == (
         "<td colspan='2'>0.78<br><small>records 0.5 to 0.91</small></td>")
     assert "records" not in rows["sliding level F_C at 0 bar gauge"]
+    # A level whose line through the records' pressures crosses 0 below them says so.
+    rows = dict(re.findall(r"<tr><td>([^<]+)</td><td>[^<]*</td>(.*?)</tr>", _parameter_table(
+        _from_values("maxwell_slip", {**values, "exit.level": -0.2013}))))
+    exit_level, entry_level = rows["sliding level F_C at 0 bar gauge"].split("</td><td>")
+    assert exit_level.startswith("<td>-0.2013<br><small>below 0") and "0.001 N" in exit_level
+    assert "below 0" not in entry_level

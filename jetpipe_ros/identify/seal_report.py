@@ -16,6 +16,7 @@ from jetpipe_ros.identify.drift import Drift, describe
 from jetpipe_ros.identify.seal import (DIRECTIONS, FORMS, FormFit, Prepared, SealResult,
                                        measured_presliding, parameter_bounds, reverses,
                                        since_reversal)
+from jetpipe_ros.model.friction import LEVEL_FLOOR
 from jetpipe_ros.model.params import ModelParams
 
 SCHEMA = "jetpipe.friction/1"
@@ -280,6 +281,11 @@ def _parameter_table(fit: FormFit, own: Sequence[FormFit] = (),
         else:
             # The bound itself, within the flag's tolerance: "0", not the 1e-33 a fit stops at.
             text = f"{(10.0 ** bound if logged else bound) * scale:.4g} (at its bound)"
+        if name.split(".")[-1] == "level" and fit.values[name] < 0.0:
+            # A line through the records' pressures can cross 0 below the lowest of them.
+            text += (f"<br><small>below 0: the line through the records' pressures, "
+                     f"extrapolated; the model holds the level at {LEVEL_FLOOR:g} N or "
+                     f"more</small>")
         values = [f.values[name] * scale for f in own]
         if len(values) > 1 and name.split(".")[-1] not in _WITH_PRESSURE:
             least, most = (f"{v:.3g}" if abs(v) >= 1e-9 else "0"
