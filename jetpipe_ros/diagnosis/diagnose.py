@@ -154,15 +154,20 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
                 best[j.name] = j
 
     plain = [(e, f) for e, f in todo if not CANDIDATES[e].carries]
+
+    def reset(e: str, suspect: Sequence[str]) -> list[str]:
+        """The calibration knobs candidate ``e``'s refit from nominal starts at nominal."""
+        return [k.name for k in CALIBRATION.knobs
+                if k.name in suspect or k.name in CANDIDATES[e].carries]
+
     # The carriers' refits from their knobs at nominal run beside the others, the longest
     # first; they are kept unless a knob at a bound turns out suspect (below), when they are
     # made again with that knob at nominal too.
-    early = [(e, f, [k.name for k in CALIBRATION.knobs if k.name in CANDIDATES[e].carries])
-             for e, f in todo if CANDIDATES[e].carries]
+    early = [(e, f, reset(e, ())) for e, f in todo if CANDIDATES[e].carries]
     fits = fitter.run(
-        [_from_nominal(nominal, cal, e, f, reset, sensors) for e, f, reset in early]
+        [_from_nominal(nominal, cal, e, f, knobs, sensors) for e, f, knobs in early]
         + [Job(nominal, f.groups, _inside(e, f.z, sensors), JOINT_BUDGET) for e, f in plain],
-        [_from_nominal_label(e, reset) for e, _, reset in early]
+        [_from_nominal_label(e, knobs) for e, _, knobs in early]
         + [f"{e} + calibration, jointly" for e, _ in plain])
     carried = fits[:len(early)]
     keep(fits[len(early):])
@@ -182,12 +187,11 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
     elif todo:
         progress(f"{', '.join(suspect)} at a bound and {left:.2f} % of the training gap left: "
                  f"refitting from there back at nominal")
-    again = [(e, f, [k.name for k in CALIBRATION.knobs
-                     if k.name in suspect or k.name in CANDIDATES[e].carries])
-             for e, f in todo if suspect or not CANDIDATES[e].carries]
-    again = [(e, f, reset) for e, f, reset in again if reset]
-    keep(fitter.run([_from_nominal(nominal, cal, e, f, reset, sensors) for e, f, reset in again],
-                    [_from_nominal_label(e, reset) for e, _, reset in again]))
+    again = [(e, f, reset(e, suspect)) for e, f in todo
+             if suspect or not CANDIDATES[e].carries]
+    again = [(e, f, knobs) for e, f, knobs in again if knobs]
+    keep(fitter.run([_from_nominal(nominal, cal, e, f, knobs, sensors) for e, f, knobs in again],
+                    [_from_nominal_label(e, knobs) for e, _, knobs in again]))
     if not suspect:
         keep(carried)
     return alone, [best[f.name] for f in onto]

@@ -25,9 +25,8 @@ flow after the map (:func:`flow_lag_matrix`, :func:`flow_lag_step`).
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
