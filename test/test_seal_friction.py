@@ -52,26 +52,33 @@ PROFILE = np.vstack([KNOTS, 1.0 + 0.10 * np.sin(2 * np.pi * KNOTS / 12e-3),
                      1.0 - 0.08 * np.cos(2 * np.pi * KNOTS / 15e-3)])
 
 
-def _synthetic(tmp_path: Path, seconds: float = 40.0, drift: float = 0.0) -> Path:
-    """A rig record made by the model's Maxwell-slip friction with :data:`TRUTH` and the bore
-    profile :data:`PROFILE`: a smoothed triangle stroke of 30 mm at 12 mm/s, 4 bar gauge, force
-    noise 0.05 N, and logger gaps; its friction scaled by 1 + ``drift`` (t / ``seconds`` -
-    1/2), a level moving by ``drift`` over the record."""
+def _rig_columns(seconds: float, drift: float = 0.0, gauge_bar: float = 4.0,
+                truth: dict[str, float] = TRUTH, seed: int = 1, profile: np.ndarray = PROFILE
+                ) -> tuple[np.ndarray, ...]:
+    """Columns t, x, p, F of a rig record made by the model's Maxwell-slip friction with
+    ``truth`` and the bore ``profile`` (:data:`PROFILE`, or :func:`no_profile`): a smoothed triangle stroke of 30 mm at
+    12 mm/s, ``gauge_bar`` gauge, force noise 0.05 N, and logger gaps; its friction scaled by
+    1 + ``drift`` (t / ``seconds`` - 1/2), a level moving by ``drift`` over the record."""
     dt = 0.01
     t = np.arange(0.0, seconds, dt)
     phase = (t / 5.0) % 2.0
     tri = np.where(phase < 1.0, phase, 2.0 - phase)
     x = 0.03 * np.convolve(tri, np.ones(15) / 15, mode="same")
     v = np.gradient(x, dt)
-    p = np.full(t.size, P_ATM + 4e5)
-    f = prescribed_friction(MAXWELL_SLIP, planes_of(TRUTH), PROFILE, v, x, p,
+    p = np.full(t.size, P_ATM + gauge_bar * 1e5)
+    f = prescribed_friction(MAXWELL_SLIP, planes_of(truth), profile, v, x, p,
                             np.full(t.size, P_ATM), dt, 0.0, 0.0, element_slips(DELTA, SPREAD, 3),
                             LEVEL_FLOOR) * (1.0 + drift * (t / seconds - 0.5))
-    force = f + (p - P_ATM) * AREA + np.random.default_rng(1).normal(0.0, 0.05, t.size)
+    force = f + (p - P_ATM) * AREA + np.random.default_rng(seed).normal(0.0, 0.05, t.size)
     keep = np.ones(t.size, dtype=bool)
     for start in range(300, t.size - 40, 700):
         keep[start:start + 25] = False  # 0.25 s gaps, as the real logger's
-    return _write_rig(tmp_path / "synthetic", t[keep], x[keep], p[keep], force[keep])
+    return t[keep], x[keep], p[keep], force[keep]
+
+
+def _synthetic(tmp_path: Path, seconds: float = 40.0, drift: float = 0.0) -> Path:
+    """A rig folder of one record (:func:`_rig_columns` with :data:`TRUTH` at 4 bar gauge)."""
+    return _write_rig(tmp_path / "synthetic", *_rig_columns(seconds, drift))
 
 
 def test_synthetic_record_recovers_its_maxwell_slip_parameters(tmp_path):
@@ -139,6 +146,57 @@ def test_the_fits_run_on_several_processes_to_the_same_answer_and_say_so(tmp_pat
         assert "selected" in captured.out and "fitted" not in captured.out
     for name in ("friction.json", "friction.yaml", "prediction/rig.csv"):
         assert (outs[1] / name).read_bytes() == (outs[2] / name).read_bytes(), name
+
+
+#: The synthetic seal over pressure: its levels rise by 0.9 N (exit) and 0.4 N (entry) per bar.
+SLOPED = {**TRUTH, "exit.level": 5.0, "exit.slope": 0.9, "entry.level": 2.0, "entry.slope": 0.4}
+
+
+@pytest.mark.parametrize("middle", [1.0, 1.3])
+def test_a_record_is_judged_by_the_seals_fit_made_without_it(tmp_path, capsys, middle):
+    """Three records of the synthetic seal at 1, 4 and 7 bar gauge, levels linear in the
+    pressure: the line through any two predicts the third, so each record is predicted by the
+    seal's fit made without it within 0.5 points of its own fit's held-out NRMSE. With the
+    4 bar record's friction 1.3 times the line's (a record whose level moved, as real ones do
+    from record to record), its level, 30 % off what the others' line gives, shows: 4 points
+    of NRMSE or more beyond its own fit's, and said on the console, in friction.json and in
+    the report."""
+    root = tmp_path / "rig"
+    root.mkdir()
+    entries = []
+    for k, gauge in enumerate((1.0, 4.0, 7.0)):
+        # Without a bore profile: 10 s fitted pass each position once each way, too few for
+        # a record's own fit to place one (MIN_PASSES).
+        t, x, p, force = _rig_columns(20.0, gauge_bar=gauge, truth=SLOPED, seed=k,
+                                      profile=no_profile())
+        if gauge == 4.0:
+            force = (force - (p - P_ATM) * AREA) * middle + (p - P_ATM) * AREA
+        rows = "\n".join(f"{a:.4f},{b:.7f},{c:.1f},{d:.4f}" for a, b, c, d in zip(t, x, p, force))
+        (root / f"rig_{gauge:g}bar.csv").write_text("t,x,p,F\n" + rows + "\n")
+        entries.append(f"  - file: rig_{gauge:g}bar.csv\n    bore: {BORE}\n    seal: S\n")
+    (root / "records.yaml").write_text("records:\n" + "".join(entries))
+    out = tmp_path / "out"
+    assert main(["friction", str(root), "--out", str(out), "--quiet"]) == 0
+    seal = json.loads((out / "friction.json").read_text())["seals"]["S"]
+    assert seal["selected"] == "maxwell_slip"
+    own = {name: r["scores"]["maxwell_slip"]["nrmse"] for name, r in seal["records"].items()}
+    unseen = {name: r["unseen"]["nrmse"] for name, r in seal["records"].items()}
+    assert set(unseen) == {"rig_1bar", "rig_4bar", "rig_7bar"}
+    if middle == 1.0:
+        for name in own:
+            assert unseen[name] < own[name] + 0.005, (name, own, unseen)
+    else:
+        assert unseen["rig_4bar"] > own["rig_4bar"] + 0.04, (own, unseen)
+    summary = seal["unseen"]
+    assert summary["records"] == 3 and summary["form"] == "maxwell_slip"
+    assert summary["unseen_median_nrmse"] == pytest.approx(np.median(list(unseen.values())))
+    printed = capsys.readouterr().out
+    assert (f"seal S: a record judged by the seal's fit made without it (a pressure or a "
+            f"repeat the fit did not see; 3 records, maxwell_slip): held-out NRMSE "
+            f"{100 * min(unseen.values()):.2f} to {100 * max(unseen.values()):.2f} %") in printed
+    report = (out / "report.html").read_text()
+    assert "A record the fit did not see" in report
+    assert f"<td>rig_4bar</td><td>{own['rig_4bar']:.2%}" in report
 
 
 def test_a_seal_a_tenth_as_strong_is_fitted_as_well():

@@ -88,8 +88,12 @@ class Drift:
                 "pass_time_s": self.times.tolist(), "pass_level_n": self.levels.tolist()}
 
 
-def pass_levels(prep: Prepared) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Per direction, each pass's median time [s] and level [N] (see the module text)."""
+def pass_levels(prep: Prepared, friction: np.ndarray | None = None
+                ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per direction, each pass's median time [s] and level [N] (see the module text) of the
+    record's measured friction, or of ``friction`` [N] along it (a model's prediction: the
+    same statistic of both)."""
+    friction = prep.friction if friction is None else friction
     rec = prep.record
     moving = prep.train | prep.test
     since = since_reversal(rec.x, prep.v)
@@ -104,7 +108,7 @@ def pass_levels(prep: Prepared) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         sign = float(np.sign(np.median(prep.v[k])))
         times, levels = out["exit" if sign > 0 else "entry"]
         times.append(float(np.median(rec.t[k])))
-        levels.append(float(np.median(sign * prep.friction[k])))
+        levels.append(float(np.median(sign * friction[k])))
     return {d: (np.array(t), np.array(f)) for d, (t, f) in out.items()}
 
 

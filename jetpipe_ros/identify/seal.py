@@ -35,7 +35,10 @@ on moving samples (speed above :data:`MIN_SPEED`, the velocity's window clear of
 gaps). The form selected is the one with the lowest median held-out NRMSE, among the static
 forms unless records reverse in their fitted and judged parts (:func:`select`). What the fit
 could not use is said (:meth:`SealResult.warnings`): a record with no moving sample in its
-fitted part, a direction in which no fitted sample moves.
+fitted part, a direction in which no fitted sample moves. How far the seal's planes carry to a
+record they did not see (a pressure not recorded, a repeat) is judged too: each training
+record's held-out part by the selected form's seal fit made without it (:func:`unseen_fit`,
+:meth:`SealResult.judge_unseen`).
 """
 
 from __future__ import annotations
@@ -730,6 +733,23 @@ class SealResult:
     #: directions in which no fitted sample moves: their planes are not fitted (the starting
     #: parameters' are written, :func:`jetpipe_ros.identify.seal_report.params_yaml`)
     unfitted: tuple[str, ...] = ()
+    #: the selected form's fit of the seal made without each training record
+    #: (:func:`unseen_fit`), by record name; empty with one training record
+    unseen_fits: dict[str, FormFit] = field(default_factory=dict)
+    #: each of those records' held-out scores with it (:meth:`judge_unseen`), by record name
+    unseen: dict[str, dict[str, float]] = field(default_factory=dict)
+
+    def judge_unseen(self, fits: dict[str, FormFit]) -> None:
+        """Keep the selected form's fits made without each training record ``fits`` (record
+        name -> :func:`unseen_fit`) and score each record's held-out samples with its own
+        (:func:`scores`): the samples its own fit is judged on, so the two scores compare how
+        far the seal's fit carries to a record it did not see (another pressure, a repeat)."""
+        self.unseen_fits = dict(fits)
+        self.unseen = {p.record.name: scores(p.friction[p.test],
+                                             fits[p.record.name].predict(p)[p.test],
+                                             p.v[p.test])
+                       for p in self.preps
+                       if p.record.name in fits and p.test.sum() >= MIN_JUDGED}
 
     def model_of(self, form: str, prep: Prepared) -> FormFit:
         """The fit that predicts a record: its own, or the seal's for a held-out record."""
@@ -775,11 +795,27 @@ def fit_seal_form(seal: str, form: str, trained: list[Prepared]
     several records, refined by one fit of them all. One task of :func:`identify_seal`, which
     the command runs in parallel."""
     own = {p.record.name: fit_form(form, [p], p.record.file) for p in trained}
+    return own, over_pressure(seal, form, trained, own)
+
+
+def over_pressure(seal: str, form: str, trained: list[Prepared], own: dict[str, FormFit]
+                  ) -> FormFit:
+    """The seal's fit of ``form`` over pressure from its training records ``trained`` and
+    their own fits ``own`` (record name -> fit): combined (:func:`combine`) and, with several
+    records, refined by one fit of them all."""
     fit = combine(form, [own[p.record.name] for p in trained], trained)
     if len(trained) > 1:
         # One set of planes for all the seal's pressures, refined from the combination.
         fit = fit_form(form, trained, seal or "seal", start=fit, max_nfev=SEAL_NFEV)
-    return own, fit
+    return fit
+
+
+def unseen_fit(seal: str, form: str, trained: list[Prepared], own: dict[str, FormFit],
+               name: str) -> FormFit:
+    """The seal's fit of ``form`` over pressure made without the record ``name`` (the other
+    training records and their own fits ``own``): what predicts a record at a pressure, or in
+    a repeat, the fit never saw. At least two training records."""
+    return over_pressure(seal, form, [p for p in trained if p.record.name != name], own)
 
 
 def identify_seal(seal: str, preps: list[Prepared], split: float = 0.5,

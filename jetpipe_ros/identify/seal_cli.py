@@ -1,8 +1,9 @@
 """``jetpipe friction DIR --out OUT``: seal friction from friction-rig records or from the
 actuator's own friction tests (a dataset).
 
-The fits (every form on every seal: :func:`jetpipe_ros.identify.seal.fit_seal_form`) run on
-``--jobs`` processes, each finished one said on stderr with the time since the start. Every
+The fits (every form on every seal: :func:`jetpipe_ros.identify.seal.fit_seal_form`; then the
+selected form's seal fit without each record, :func:`jetpipe_ros.identify.seal.unseen_fit`) run
+on ``--jobs`` processes, each finished one said on stderr with the time since the start. Every
 output (``friction.yaml``, ``friction.json``, ``report.html``, ``prediction/*.csv``) is written
 together at the end: all or, on an error, none.
 """
@@ -14,6 +15,7 @@ import re
 import signal
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 from threadpoolctl import threadpool_limits
 
@@ -46,28 +48,48 @@ def _fit_all(trained: dict[str, list], jobs: int, progress: Progress) -> dict:
     ``progress``."""
     from jetpipe_ros.identify.seal import FORMS
 
-    tasks = [(seal, form) for seal in trained for form in FORMS]
+    tasks = [(seal, form, trained[seal]) for seal in trained for form in FORMS]
     progress(f"fitting {len(FORMS)} forms to {len(trained)} seal(s) "
              f"({sum(map(len, trained.values()))} training records): {len(tasks)} fits on "
              f"{min(jobs, len(tasks))} process(es)")
     fitted: dict[str, dict] = {seal: {} for seal in trained}
-    for done, (seal, form, result) in enumerate(_fits(tasks, trained, jobs), 1):
+    for done, (seal, form, result) in enumerate(_pooled(_fit_task, tasks, jobs), 1):
         fitted[seal][form] = result
         progress(f"[{done}/{len(tasks)}] {f'seal {seal}: ' if seal else ''}{form} fitted")
     return fitted
 
 
-def _fits(tasks: list[tuple[str, str]], trained: dict[str, list], jobs: int
-          ) -> Iterator[tuple[str, str, tuple]]:
-    """(seal, form, result) of each fit as it ends: in this process with one job, else on a
-    pool of ``jobs`` processes (:func:`_worker`). An error in a fit is raised here; then, as on
-    Ctrl-C, the pool's processes are terminated at once, the fits running in them dropped."""
-    work = [(seal, form, trained[seal]) for seal, form in tasks]
-    if jobs == 1:
-        yield from map(_fit_task, work)
+def _unseen_all(results: list, trained: dict[str, list], fitted: dict, jobs: int,
+                progress: Progress) -> None:
+    """For each seal with two training records or more, its selected form's fit without each
+    of them (:func:`~jetpipe_ros.identify.seal.unseen_fit`), on ``jobs`` processes, and the
+    record judged with it (:meth:`~jetpipe_ros.identify.seal.SealResult.judge_unseen`)."""
+    tasks = [(res.seal, res.selected, trained[res.seal], fitted[res.seal][res.selected][0],
+              p.record.name) for res in results if len(trained[res.seal]) > 1
+             for p in trained[res.seal]]
+    if not tasks:
         return
-    with multiprocessing.get_context("spawn").Pool(min(jobs, len(tasks)), _worker) as pool:
-        yield from pool.imap_unordered(_fit_task, work)
+    progress(f"each record judged by its seal's fit made without it (the selected form): "
+             f"{len(tasks)} fits on {min(jobs, len(tasks))} process(es)")
+    fits: dict[str, dict] = {res.seal: {} for res in results}
+    for done, (seal, name, fit) in enumerate(_pooled(_unseen_task, tasks, jobs), 1):
+        fits[seal][name] = fit
+        progress(f"[{done}/{len(tasks)}] {f'seal {seal}: ' if seal else ''}without {name} "
+                 f"fitted")
+    for res in results:
+        res.judge_unseen(fits[res.seal])
+
+
+def _pooled(function, work: list[tuple], jobs: int) -> Iterator[tuple]:
+    """``function``'s result on each item of ``work`` as it ends: in this process with one
+    job, else on a pool of ``jobs`` processes (:func:`_worker`). An error in a task is raised
+    here; then, as on Ctrl-C, the pool's processes are terminated at once, the tasks running
+    in them dropped."""
+    if jobs == 1:
+        yield from map(function, work)
+        return
+    with multiprocessing.get_context("spawn").Pool(min(jobs, len(work)), _worker) as pool:
+        yield from pool.imap_unordered(function, work)
 
 
 def _worker() -> None:
@@ -84,6 +106,15 @@ def _fit_task(task: tuple[str, str, list]) -> tuple[str, str, tuple]:
 
     seal, form, trained = task
     return seal, form, fit_seal_form(seal, form, trained)
+
+
+def _unseen_task(task: tuple[str, str, list, dict, str]) -> tuple[str, str, Any]:
+    """One seal's fit without one record, in a pool process or this one: (seal, the record's
+    name, :func:`~jetpipe_ros.identify.seal.unseen_fit`)."""
+    from jetpipe_ros.identify.seal import unseen_fit
+
+    seal, form, trained, own, name = task
+    return seal, name, unseen_fit(seal, form, trained, own, name)
 
 
 def _seal_file(seal: str, taken: dict) -> str:
@@ -104,8 +135,8 @@ def _run(args) -> int:
     from jetpipe_ros.identify.drift import describe, level_drift
     from jetpipe_ros.identify.experiments import FRICTION, of_kind, recordings
     from jetpipe_ros.identify.seal import identify_seal, prepare, prepare_test
-    from jetpipe_ros.identify.seal_report import (html_report, params_yaml, piston_scale,
-                                                  prediction_csv, to_json)
+    from jetpipe_ros.identify.seal_report import (describe_unseen, html_report, params_yaml,
+                                                  piston_scale, prediction_csv, to_json)
     from jetpipe_ros.model import ModelParams, load_params
 
     progress = Progress(args.quiet)
@@ -135,6 +166,7 @@ def _run(args) -> int:
     trained, refused = usable(seals, args.split)
     fitted = _fit_all(trained, args.jobs, progress)
     results = [identify_seal(seal, seals[seal], args.split, fitted[seal]) for seal in trained]
+    _unseen_all(results, trained, fitted, args.jobs, progress)
     drifts = {p.record.name: level_drift(p) for res in results for p in res.preps}
     doc = to_json(results, args.split, notes, drifts, refused)
     files: dict = {out / "friction.yaml": params_yaml(results[0], base, args.scale_to_piston),
@@ -157,6 +189,9 @@ def _run(args) -> int:
         for warning in res.warnings(args.split):
             print(f"seal {res.seal or '(unnamed)'}: {warning}")
         print(f"seal {res.seal or '(unnamed)'}: selected {res.selected}")
+        unseen = describe_unseen(res)
+        if unseen:
+            print(f"seal {res.seal or '(unnamed)'}: {unseen}")
         drift = describe({p.record.name: drifts[p.record.name] for p in res.preps})
         if drift:
             print(f"seal {res.seal or '(unnamed)'}: {drift}")
@@ -176,7 +211,8 @@ def add_command(subparsers) -> None:
                     "LuGre, Maxwell-slip) to friction-rig records (records.yaml + CSVs "
                     "t,x,p,F), or to the friction tests of an actuator's dataset (Eq. 19), "
                     "on the first part of each record, judge them on the rest, select "
-                    "the best by held-out NRMSE, measure how each record's sliding level "
+                    "the best by held-out NRMSE, judge each record by its seal's fit made "
+                    "without it, measure how each record's sliding level "
                     "drifts over time, and write OUT/friction.yaml (loadable by "
                     "jetpipe simulate and actuator_sim), OUT/friction.json, OUT/report.html "
                     "and OUT/prediction/<record>.csv.")
