@@ -196,7 +196,8 @@ def test_a_record_is_judged_by_the_seals_fit_made_without_it(tmp_path, capsys, m
             f"{100 * min(unseen.values()):.2f} to {100 * max(unseen.values()):.2f} %") in printed
     report = (out / "report.html").read_text()
     assert "A record the fit did not see" in report
-    assert f"<td>rig_4bar</td><td>{own['rig_4bar']:.2%}" in report
+    assert (f"<td>rig_4bar</td><td>{own['rig_4bar'] * 100:.2f} % / " in report
+            and f"<td>{unseen['rig_4bar'] * 100:.2f} % / " in report)
 
 
 def test_a_seal_a_tenth_as_strong_is_fitted_as_well():

@@ -249,9 +249,11 @@ def _unseen_table(res: SealResult) -> str:
     """Each training record's held-out NRMSE and R^2 within direction by its own fit and by
     the seal's fit made without it, with the words on what that measures."""
     rows = "".join(
-        f"<tr><td>{html.escape(name)}</td><td>{res.scores[res.selected][name]['nrmse']:.2%} / "
-        f"{res.scores[res.selected][name]['r2_within']:.2f}</td><td>{u['nrmse']:.2%} / "
-        f"{u['r2_within']:.2f}</td></tr>" for name, u in res.unseen.items())
+        f"<tr><td>{html.escape(name)}</td>"
+        f"<td>{res.scores[res.selected][name]['nrmse'] * 100:.2f} % / "
+        f"{res.scores[res.selected][name]['r2_within']:.2f}</td>"
+        f"<td>{u['nrmse'] * 100:.2f} % / {u['r2_within']:.2f}</td></tr>"
+        for name, u in res.unseen.items())
     return ("<h3>A record the fit did not see</h3><p>Each training record judged, on the same "
             "held-out samples, by its own fit and by the seal's fit made without it (from the "
             "other records' first parts): how far the seal's planes carry to a pressure, or a "
