@@ -16,7 +16,8 @@ from jetpipe_ros.cli import main
 from jetpipe_ros.dataset import DatasetError, read_dataset, read_records
 from jetpipe_ros.identify.drift import level_drift
 from jetpipe_ros.identify.seal import (FORMS, STATIC_FORMS, fit_form, measured_presliding,
-                                       no_profile, planes_of, prepare, scores, velocity_window)
+                                       no_profile, planes_of, prepare, scores, unseen_fit,
+                                       velocity_window)
 from jetpipe_ros.model import ModelParams, load_params
 from jetpipe_ros.model.actuator import simulate
 from jetpipe_ros.model.flow import P_ATM
@@ -152,21 +153,13 @@ def test_the_fits_run_on_several_processes_to_the_same_answer_and_say_so(tmp_pat
 SLOPED = {**TRUTH, "exit.level": 5.0, "exit.slope": 0.9, "entry.level": 2.0, "entry.slope": 0.4}
 
 
-@pytest.mark.parametrize("middle", [1.0, 1.3])
-def test_a_record_is_judged_by_the_seals_fit_made_without_it(tmp_path, capsys, middle):
-    """Three records of the synthetic seal at 1, 4 and 7 bar gauge, levels linear in the
-    pressure: the line through any two predicts the third, so each record is predicted by the
-    seal's fit made without it within 0.5 points of its own fit's held-out NRMSE. With the
-    4 bar record's friction 1.3 times the line's (a record whose level moved, as real ones do
-    from record to record), its level, 30 % off what the others' line gives, shows: 4 points
-    of NRMSE or more beyond its own fit's, and said on the console, in friction.json and in
-    the report."""
-    root = tmp_path / "rig"
+def _pressure_series(root: Path, middle: float) -> Path:
+    """A rig folder of the synthetic seal :data:`SLOPED` (no bore profile: 10 s fitted pass
+    each position once each way, too few for a record's own fit to place one) at 1, 4 and
+    7 bar gauge, 20 s each, the 4 bar record's friction times ``middle``."""
     root.mkdir()
     entries = []
     for k, gauge in enumerate((1.0, 4.0, 7.0)):
-        # Without a bore profile: 10 s fitted pass each position once each way, too few for
-        # a record's own fit to place one (MIN_PASSES).
         t, x, p, force = _rig_columns(20.0, gauge_bar=gauge, truth=SLOPED, seed=k,
                                       profile=no_profile())
         if gauge == 4.0:
@@ -175,18 +168,39 @@ def test_a_record_is_judged_by_the_seals_fit_made_without_it(tmp_path, capsys, m
         (root / f"rig_{gauge:g}bar.csv").write_text("t,x,p,F\n" + rows + "\n")
         entries.append(f"  - file: rig_{gauge:g}bar.csv\n    bore: {BORE}\n    seal: S\n")
     (root / "records.yaml").write_text("records:\n" + "".join(entries))
+    return root
+
+
+def test_a_seal_whose_level_is_linear_in_pressure_carries_to_a_record_it_did_not_see(tmp_path):
+    """The synthetic seal at 1, 4 and 7 bar gauge, its levels linear in the pressure: the line
+    through two records predicts the third, so the 1 bar record (extrapolated, the harder
+    case) is predicted by the seal's fit made without it (Maxwell-slip, the form that made
+    them) within 0.5 points of its own fit's held-out NRMSE."""
+    preps = [prepare(r) for r in read_records(_pressure_series(tmp_path / "rig", 1.0))]
+    own = {p.record.name: fit_form("maxwell_slip", [p], p.record.file) for p in preps}
+    low = preps[0]
+    assert low.record.name == "rig_1bar"
+    fit = unseen_fit("S", "maxwell_slip", preps, own, "rig_1bar")
+    unseen, mine = (scores(low.friction[low.test], f.predict(low)[low.test], low.v[low.test])[
+        "nrmse"] for f in (fit, own["rig_1bar"]))
+    assert unseen < mine + 0.005, (mine, unseen)
+
+
+def test_a_record_whose_level_moved_is_missed_by_the_fit_without_it_and_said(tmp_path, capsys):
+    """The same series with the 4 bar record's friction 1.3 times the line's (a record whose
+    level moved, as real ones do from record to record): its level, 30 % off what the others'
+    line gives (a miss of about 3 N against a friction range of about 16 N), costs 4 points of
+    NRMSE or more beyond its own fit's, and is said on the console, in friction.json and in
+    the report."""
     out = tmp_path / "out"
-    assert main(["friction", str(root), "--out", str(out), "--quiet"]) == 0
+    assert main(["friction", str(_pressure_series(tmp_path / "rig", 1.3)), "--out", str(out),
+                 "--quiet"]) == 0
     seal = json.loads((out / "friction.json").read_text())["seals"]["S"]
     assert seal["selected"] == "maxwell_slip"
     own = {name: r["scores"]["maxwell_slip"]["nrmse"] for name, r in seal["records"].items()}
     unseen = {name: r["unseen"]["nrmse"] for name, r in seal["records"].items()}
     assert set(unseen) == {"rig_1bar", "rig_4bar", "rig_7bar"}
-    if middle == 1.0:
-        for name in own:
-            assert unseen[name] < own[name] + 0.005, (name, own, unseen)
-    else:
-        assert unseen["rig_4bar"] > own["rig_4bar"] + 0.04, (own, unseen)
+    assert unseen["rig_4bar"] > own["rig_4bar"] + 0.04, (own, unseen)
     summary = seal["unseen"]
     assert summary["records"] == 3 and summary["form"] == "maxwell_slip"
     assert summary["unseen_median_nrmse"] == pytest.approx(np.median(list(unseen.values())))
