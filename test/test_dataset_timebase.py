@@ -8,6 +8,7 @@ import yaml
 import pytest
 
 from jetpipe_ros.dataset import DatasetError, read_dataset, read_experiment
+from jetpipe_ros.diagnosis.data import prepare
 
 COLUMNS = ("t", "u", "y", "p1", "p2")
 
@@ -141,6 +142,28 @@ def test_other_rates(tmp_path, rate):
     np.testing.assert_allclose(exp.t, np.arange(n) / rate, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(exp.y, cols["y"])
     assert exp.valid is None and exp.notes == []
+
+
+@pytest.mark.parametrize("rate, stamp", [(100, "{:.2f}"), (10000, "{:.4f}"), (50, "{:.2f}")])
+def test_the_diagnosis_takes_rates_from_100_hz_to_10_khz_bounds_included(tmp_path, rate, stamp):
+    """Stamps printed to the logger's own resolution put the grid's step a rounding off its
+    rate (0.01 s read as 0.010000000000000009 s): 100 Hz and 10 kHz, the bounds the docs give,
+    are taken; 50 Hz is refused, naming the sample time and the range."""
+    root = tmp_path / "d"
+    root.mkdir()
+    cols = signals(np.arange(6 * rate) / rate)
+    names = list(cols)
+    (root / "e.csv").write_text(",".join(names) + "\n" + "\n".join(
+        ",".join([stamp.format(r[0])] + [f"{v:.17g}" for v in r[1:]])
+        for r in np.column_stack([cols[c] for c in names])) + "\n")
+    (root / "dataset.yaml").write_text("experiments:\n  - file: e.csv\n")
+    ds = read_dataset(root)
+    if rate == 50:
+        with pytest.raises(DatasetError, match=r"sample time 20 ms is outside 0.1-10 ms "
+                                               r"\(10 kHz to 100 Hz\)"):
+            prepare(ds)
+    else:
+        assert prepare(ds).dt == pytest.approx(1.0 / rate, rel=1e-9)
 
 
 def test_what_cannot_be_read_is_refused(tmp_path):

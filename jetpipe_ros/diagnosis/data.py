@@ -42,6 +42,10 @@ MIN_SCALE = {"y": 1e-3, "p1": 1e4, "p2": 1e4}
 SPLIT_GAP = 0.0255
 #: Fewest samples a record (or the part of a split one) needs to be predicted and scored.
 MIN_SAMPLES = 50
+#: Sample times [s] the diagnosis takes, 10 kHz to 100 Hz (docs/real_logs.md), each bound
+#: itself included: a grid's step read from its stamps carries their rounding (0.01 s read as
+#: 0.010000000000000009 s from stamps printed to 10 ms).
+SAMPLE_TIMES = (1e-4, 1e-2)
 #: Fewest changes between successive samples from which a signal's lattice is read
 #: (:func:`resolution`).
 MIN_MOVES = 20
@@ -252,8 +256,10 @@ def prepare(dataset: Dataset, shift_rows: int = 0) -> Prepared:
         if exp.t.size < 50:
             raise DatasetError(f"{dataset.root / entry.file}: only {exp.t.size} samples; the "
                                f"diagnosis needs at least 50 per experiment")
-    if not 1e-4 <= dt <= 1e-2:
-        raise DatasetError(f"{dataset.root}: sample time {dt:g} s is outside 0.1-10 ms")
+    low, high = SAMPLE_TIMES
+    if not low * (1.0 - 1e-6) <= dt <= high * (1.0 + 1e-6):
+        raise DatasetError(f"{dataset.root}: sample time {dt * 1e3:.4g} ms is outside "
+                           f"{low * 1e3:g}-{high * 1e3:g} ms (10 kHz to 100 Hz)")
     roles = [e.role for e in dataset.entries]
     n = len(roles)
     by_time = False
