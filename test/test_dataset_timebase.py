@@ -9,6 +9,7 @@ import pytest
 
 from jetpipe_ros.dataset import DatasetError, read_dataset, read_experiment
 from jetpipe_ros.diagnosis.data import prepare
+from jetpipe_ros.model import ModelParams
 
 COLUMNS = ("t", "u", "y", "p1", "p2")
 
@@ -148,7 +149,8 @@ def test_other_rates(tmp_path, rate):
 def test_the_diagnosis_takes_rates_from_100_hz_to_10_khz_bounds_included(tmp_path, rate, stamp):
     """Stamps printed to the logger's own resolution put the grid's step a rounding off its
     rate (0.01 s read as 0.010000000000000009 s): 100 Hz and 10 kHz, the bounds the docs give,
-    are taken; 50 Hz is refused, naming the sample time and the range."""
+    are taken at their rate, which the model runs at; 50 Hz is refused, naming the sample time
+    and the range."""
     root = tmp_path / "d"
     root.mkdir()
     cols = signals(np.arange(6 * rate) / rate)
@@ -163,7 +165,10 @@ def test_the_diagnosis_takes_rates_from_100_hz_to_10_khz_bounds_included(tmp_pat
                                                r"\(10 kHz to 100 Hz\)"):
             prepare(ds)
     else:
-        assert prepare(ds).dt == pytest.approx(1.0 / rate, rel=1e-9)
+        dt = prepare(ds).dt
+        assert dt == 1.0 / rate  # the stamps' rounding is no part of the rate
+        # ... and the model runs at it (0.010000000000000009 s was outside its range).
+        assert ModelParams().at_sample_time(dt)["integration.sample_time"] == dt
 
 
 def test_what_cannot_be_read_is_refused(tmp_path):
