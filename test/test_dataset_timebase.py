@@ -7,6 +7,7 @@ import numpy as np
 import yaml
 import pytest
 
+from jetpipe_ros.cli import main
 from jetpipe_ros.dataset import DatasetError, read_dataset, read_experiment
 from jetpipe_ros.diagnosis.data import prepare
 from jetpipe_ros.model import ModelParams
@@ -160,15 +161,17 @@ def test_the_diagnosis_takes_rates_from_100_hz_to_10_khz_bounds_included(tmp_pat
         for r in np.column_stack([cols[c] for c in names])) + "\n")
     (root / "dataset.yaml").write_text("experiments:\n  - file: e.csv\n")
     ds = read_dataset(root)
+    assert ds.experiments[0].dt == 1.0 / rate  # the stamps' rounding is no part of the rate
     if rate == 50:
         with pytest.raises(DatasetError, match=r"sample time 20 ms is outside 0.1-10 ms "
                                                r"\(10 kHz to 100 Hz\)"):
             prepare(ds)
     else:
         dt = prepare(ds).dt
-        assert dt == 1.0 / rate  # the stamps' rounding is no part of the rate
-        # ... and the model runs at it (0.010000000000000009 s was outside its range).
+        # The model runs at it (0.010000000000000009 s was outside its range), and a replay.
         assert ModelParams().at_sample_time(dt)["integration.sample_time"] == dt
+        assert main(["simulate", "--input", str(root / "e.csv"), "--out",
+                     str(tmp_path / "sim.csv")]) == 0
 
 
 def test_what_cannot_be_read_is_refused(tmp_path):

@@ -32,6 +32,11 @@ from jetpipe_ros.dataset.errors import DatasetError
 from jetpipe_ros.dataset.units import declared, to_si
 from jetpipe_ros.model.limits import NOMINAL, Limits
 
+#: Significant digits a record's sample time is read to: the step between stamps carries their
+#: rounding (0.01 s read as 0.010000000000000009 s from stamps printed to 10 ms), which is no
+#: part of the logger's rate and put a 100 Hz record outside the model's range of sample
+#: times; a clock off its nominal rate by 1 ppm still shows.
+SAMPLE_TIME_DIGITS = 9
 #: Column separators a header is searched for, in order (a comma first: a comma-separated
 #: file has no other), with their names.
 DELIMITERS = {",": "comma", ";": "semicolon", "\t": "tab"}
@@ -73,8 +78,10 @@ class Experiment:
 
     @property
     def dt(self) -> float:
-        """Median sample interval [s]."""
-        return float(np.median(np.diff(self.t))) if self.t.size > 1 else math.nan
+        """Median sample interval [s], to :data:`SAMPLE_TIME_DIGITS` significant digits."""
+        if self.t.size < 2:
+            return math.nan
+        return float(f"{np.median(np.diff(self.t)):.{SAMPLE_TIME_DIGITS}g}")
 
     def columns(self) -> dict[str, np.ndarray]:
         """All present columns in contract order, then extras."""

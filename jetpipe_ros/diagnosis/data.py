@@ -44,11 +44,6 @@ SPLIT_GAP = 0.0255
 MIN_SAMPLES = 50
 #: Sample times [s] the diagnosis takes, 10 kHz to 100 Hz (docs/real_logs.md), bounds included.
 SAMPLE_TIMES = (1e-4, 1e-2)
-#: Significant digits a record's sample time is read to: a step read from stamps carries their
-#: rounding (0.01 s read as 0.010000000000000009 s from stamps printed to 10 ms), which is no
-#: part of the logger's rate and would put a 100 Hz record outside the model's range; a clock
-#: off its nominal rate by 1 ppm still shows.
-SAMPLE_TIME_DIGITS = 9
 #: Fewest changes between successive samples from which a signal's lattice is read
 #: (:func:`resolution`).
 MIN_MOVES = 20
@@ -251,7 +246,7 @@ def prepare(dataset: Dataset, shift_rows: int = 0) -> Prepared:
     measurements are that many rows early (row k holds the measurement taken k rows after the
     command beside it was applied), negative when late."""
     dts = [exp.dt for exp in dataset.experiments]
-    dt = float(f"{np.median(dts):.{SAMPLE_TIME_DIGITS}g}")
+    dt = float(np.median(dts))
     for (entry, exp), d in zip(dataset, dts):
         if abs(d - dt) > 1e-3 * dt:
             raise DatasetError(f"{dataset.root / entry.file}: sample time {d * 1e3:.4g} ms differs "
