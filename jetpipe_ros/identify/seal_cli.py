@@ -60,24 +60,32 @@ def _fit_all(trained: dict[str, list], jobs: int, progress: Progress) -> dict:
 
 
 def _unseen_all(results: list, trained: dict[str, list], fitted: dict, jobs: int,
-                progress: Progress) -> None:
+                progress: Progress) -> list[str]:
     """For each seal with two training records or more, its selected form's fit without each
     of them (:func:`~jetpipe_ros.identify.seal.unseen_fit`), on ``jobs`` processes, and the
-    record judged with it (:meth:`~jetpipe_ros.identify.seal.SealResult.judge_unseen`)."""
+    record judged with it (:meth:`~jetpipe_ros.identify.seal.SealResult.judge_unseen`). Returns
+    what could not be fitted, in words: optional, so such a record is left unjudged (its
+    ``unseen`` null) and the command goes on."""
     tasks = [(res.seal, res.selected, trained[res.seal], fitted[res.seal][res.selected][0],
               p.record.name) for res in results if len(trained[res.seal]) > 1
              for p in trained[res.seal]]
     if not tasks:
-        return
+        return []
     progress(f"each record judged by its seal's fit made without it (the selected form): "
              f"{len(tasks)} fits on {min(jobs, len(tasks))} process(es)")
     fits: dict[str, dict] = {res.seal: {} for res in results}
+    failed = []
     for done, (seal, name, fit) in enumerate(_pooled(_unseen_task, tasks, jobs), 1):
-        fits[seal][name] = fit
+        if isinstance(fit, str):
+            failed.append(f"{f'seal {seal}: ' if seal else ''}{name} not judged by the seal's "
+                          f"fit without it: {fit}")
+        else:
+            fits[seal][name] = fit
         progress(f"[{done}/{len(tasks)}] {f'seal {seal}: ' if seal else ''}without {name} "
-                 f"fitted")
+                 f"{'not fitted' if isinstance(fit, str) else 'fitted'}")
     for res in results:
         res.judge_unseen(fits[res.seal])
+    return failed
 
 
 def _pooled(function, work: list[tuple], jobs: int) -> Iterator[tuple]:
@@ -110,11 +118,15 @@ def _fit_task(task: tuple[str, str, list]) -> tuple[str, str, tuple]:
 
 def _unseen_task(task: tuple[str, str, list, dict, str]) -> tuple[str, str, Any]:
     """One seal's fit without one record, in a pool process or this one: (seal, the record's
-    name, :func:`~jetpipe_ros.identify.seal.unseen_fit`)."""
+    name, :func:`~jetpipe_ros.identify.seal.unseen_fit`, or why it failed)."""
+    from jetpipe_ros.dataset import DatasetError
     from jetpipe_ros.identify.seal import unseen_fit
 
     seal, form, trained, own, name = task
-    return seal, name, unseen_fit(seal, form, trained, own, name)
+    try:
+        return seal, name, unseen_fit(seal, form, trained, own, name)
+    except DatasetError as err:
+        return seal, name, str(err)
 
 
 def _seal_file(seal: str, taken: dict) -> str:
@@ -166,7 +178,8 @@ def _run(args) -> int:
     trained, refused = usable(seals, args.split)
     fitted = _fit_all(trained, args.jobs, progress)
     results = [identify_seal(seal, seals[seal], args.split, fitted[seal]) for seal in trained]
-    _unseen_all(results, trained, fitted, args.jobs, progress)
+    unjudged = _unseen_all(results, trained, fitted, args.jobs, progress)
+    notes += unjudged
     drifts = {p.record.name: level_drift(p) for res in results for p in res.preps}
     doc = to_json(results, args.split, notes, drifts, refused)
     files: dict = {out / "friction.yaml": params_yaml(results[0], base, args.scale_to_piston),
@@ -185,6 +198,8 @@ def _run(args) -> int:
               f"R^2 within direction {s['median_r2_within']:5.2f}")
     for reason in refused.values():
         print(f"not fitted: {reason}")
+    for words in unjudged:
+        print(words)
     for res in results:
         for warning in res.warnings(args.split):
             print(f"seal {res.seal or '(unnamed)'}: {warning}")
