@@ -199,3 +199,38 @@ def test_a_bench_loggers_export_reads_back_as_the_clean_record_a_row_early(clean
                  "t: ms -> s", "y: mm -> m", "+ 101325 Pa", "snapped to the grid",
                  f"{lost.sum()} rows missing"):
         assert said in notes, said
+
+
+def test_a_loggers_row_of_units_is_read_as_units_and_never_converts_unseen(clean, tmp_path):
+    """A row of units under the header (what many loggers and spreadsheets write): in the
+    contract's units it is read as such, said, and the record is the clean one; in mm and bar
+    it is refused with the declaration to make (a row of units is read, never acted on: bar
+    says neither gauge nor absolute); declared in dataset.yaml, it reads as the declaration
+    says (the gauge_mm logger's record with its own row of units)."""
+    path, header, rows = _copied(clean, tmp_path / "si")
+    si = {"t": "s", "u": "V", "y": "m", "p1": "Pa", "p2": "Pa", "v": "m/s", "f_load": "N"}
+    path.write_text("\n".join([",".join(header), ",".join(f"[{si.get(c, '-')}]" for c in header),
+                               *rows]) + "\n")
+    exp, = read_dataset(tmp_path / "si").experiments
+    ref, = read_dataset(clean).experiments
+    np.testing.assert_array_equal(exp.y, ref.y)
+    assert exp.t.size == ref.t.size
+    assert exp.notes[0].startswith("line 2 read as the columns' units (t s, u V, y m, p1 Pa")
+
+    gauge = tmp_path / "gauge"
+    shutil.copytree(clean, gauge)
+    log("gauge_mm", gauge, seed=0)
+    path = gauge / "sweep_1p5V.csv"
+    header, *rows = path.read_text().splitlines()
+    shown = {**si, "y": "mm", "p1": "bar", "p2": "bar"}
+    path.write_text("\n".join([header, ",".join(shown.get(c, "-") for c in header.split(",")),
+                               *rows]) + "\n")
+    exp, = read_dataset(gauge).experiments  # declared by the logger: mm, bar gauge
+    np.testing.assert_allclose(exp.y, ref.y, atol=1e-6)
+    doc = yaml.safe_load((gauge / "dataset.yaml").read_text())
+    del doc["units"]
+    (gauge / "dataset.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    with pytest.raises(DatasetError, match=r"line 2: a row of units \(s, V, mm, bar, bar.*\) "
+                                           r"gives column 'y' in 'mm', where the contract reads "
+                                           r"m: declare it in dataset.yaml \(units: \{y: mm\}"):
+        read_dataset(gauge)

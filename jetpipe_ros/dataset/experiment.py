@@ -29,7 +29,7 @@ import numpy as np
 from jetpipe_ros import fileio
 from jetpipe_ros.dataset import plausibility, timebase
 from jetpipe_ros.dataset.errors import DatasetError
-from jetpipe_ros.dataset.units import declared, to_si
+from jetpipe_ros.dataset.units import contract_unit, declared, to_si
 from jetpipe_ros.model.limits import NOMINAL, Limits
 
 #: Significant digits a record's sample time is read to: the step between stamps carries their
@@ -112,7 +112,8 @@ def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
     cols, line_nos, read = read_columns(
         path, required, (*COMPLETE, *OPTIONAL), any_of=any_of, rename=columns,
         hint="; the contract's names are t, u, y, p1, p2 (docs/data.md): name the file's own "
-             "in dataset.yaml, e.g. columns: {Time: t, Command: u}")
+             "in dataset.yaml, e.g. columns: {Time: t, Command: u}",
+        units_row={c: (units or {}).get(c) for c in (*COMPLETE, *OPTIONAL)})
     notes = read + to_si(f"{path}: units", cols, units)
     timebase.check_increasing(path, cols["t"], line_nos)
     plausibility.check(path, cols, limits, line_nos)
@@ -122,7 +123,8 @@ def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
 
 def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
                  any_of: Sequence[str] = (), least: int = 2, hint: str = "",
-                 rename: Mapping[str, str] | None = None, index: str = "dataset.yaml"
+                 rename: Mapping[str, str] | None = None, index: str = "dataset.yaml",
+                 units_row: Mapping[str, str] | None = None
                  ) -> tuple[dict[str, np.ndarray], np.ndarray, list[str]]:
     """The numeric columns ``known`` that a CSV with a header row has (``required`` all of
     them, at least one of ``any_of``), each as a float array, the file's line number of every
@@ -138,7 +140,10 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
     it: :mod:`jetpipe_ros.dataset.timebase`), and said; a column of ``known`` with no reading
     in any row is a sensor the bench does not have (a logger with a fixed layout), read as
     absent unless ``required``. A row repeated exactly (every value the same as the row
-    before, stamp included: a logger that wrote it twice) is read once. Anything else
+    before, stamp included: a logger that wrote it twice) is read once. With ``units_row``
+    (column -> the unit it is declared in, or None for the contract's: :func:`_units_row`), a
+    first row under the header with no number in any column read is the logger's row of units:
+    read as such, not as data. Anything else
     unreadable raises DatasetError naming the file, the line and the column (``hint`` says
     what the columns should hold); so does an infinite value."""
     try:
@@ -178,11 +183,18 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
         index = {c: header.index(c) for c in wanted}
         rows: list[list[float]] = []
         lines: list[int] = []
+        declared_units = units_row
         for row in reader:
             if (not row or row[0].lstrip().startswith("#")
                     or all(not cell.strip() for cell in row)):
                 continue
             line_no = first + reader.line_num
+            if units_row is not None and not rows:
+                cells = {c: row[index[c]].strip() if index[c] < len(row) else "" for c in wanted}
+                units_row = None  # only the first row under the header may be one
+                if all(cell and not _number(cell, decimal_comma) for cell in cells.values()):
+                    notes.append(_units_row(path, line_no, cells, declared_units))
+                    continue
             values = []
             for col in wanted:
                 i = index[col]
@@ -231,6 +243,35 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
         raise DatasetError(f"{path}: needs at least {least} data rows, has {len(data)}")
     return ({c: np.ascontiguousarray(data[:, j]) for j, c in enumerate(wanted)}, line_nos,
             notes)
+
+
+def _number(cell: str, decimal_comma: bool) -> bool:
+    """True when ``cell`` reads as a number (NaN included)."""
+    try:
+        float(cell.replace(",", ".") if decimal_comma else cell)
+    except ValueError:
+        return False
+    return True
+
+
+def _units_row(path: Path, line: int, cells: Mapping[str, str],
+               declared: Mapping[str, str | None]) -> str:
+    """The note on a logger's row of units ``cells`` (column -> its cell, brackets allowed:
+    ``[mm]``) at ``line``; DatasetError when it gives a column in a unit other than the
+    contract's that dataset.yaml does not declare (``declared``: column -> the declared unit,
+    None for none): a row of units is read, never acted on, so nothing is converted unseen."""
+    named = {c: cell.strip("[]() ") for c, cell in cells.items()}
+    for column, unit in named.items():
+        if declared.get(column) is None and unit != contract_unit(column):
+            raise DatasetError(
+                f"{path}: line {line}: a row of units ({', '.join(named.values())}) gives "
+                f"column {column!r} in {unit!r}, where the contract reads "
+                f"{contract_unit(column)}: declare it in dataset.yaml (units: "
+                f"{{{column}: {unit}}}; a pressure says gauge or absolute, e.g. 'bar gauge'; "
+                f"docs/data.md) or convert the column")
+    return (f"line {line} read as the columns' units ("
+            f"{', '.join(f'{c} {u}' for c, u in named.items())}), not as data; the units used "
+            f"are the contract's and those declared in dataset.yaml")
 
 
 def _rows_said(rows: np.ndarray, what: str, first: list[str]) -> str:

@@ -104,6 +104,12 @@ class Unit:
         return f"{self.column}: {self.name} -> {self.si} ({', '.join(how)})"
 
 
+def contract_unit(column: str, quantities: Mapping[str, str] = EXPERIMENT) -> str:
+    """The unit the contract reads ``column`` in (of the file whose columns are
+    ``quantities``): the SI unit of its quantity, absolute Pa for a pressure."""
+    return "Pa" if quantities[column] == "pressure" else _SCALES[quantities[column]][0]
+
+
 def accepted(column: str, quantities: Mapping[str, str] = EXPERIMENT) -> str:
     """The units accepted for ``column`` (of the file whose columns are ``quantities``: column
     -> quantity), for messages."""
