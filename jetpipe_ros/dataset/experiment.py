@@ -113,7 +113,7 @@ def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
         path, required, (*COMPLETE, *OPTIONAL), any_of=any_of, rename=columns,
         hint="; the contract's names are t, u, y, p1, p2 (docs/data.md): name the file's own "
              "in dataset.yaml, e.g. columns: {Time: t, Command: u}",
-        units_row={c: (units or {}).get(c) for c in (*COMPLETE, *OPTIONAL)})
+        declared_units=units or {})
     notes = read + to_si(f"{path}: units", cols, units)
     timebase.check_increasing(path, cols["t"], line_nos)
     plausibility.check(path, cols, limits, line_nos)
@@ -124,7 +124,7 @@ def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,
 def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
                  any_of: Sequence[str] = (), least: int = 2, hint: str = "",
                  rename: Mapping[str, str] | None = None, index: str = "dataset.yaml",
-                 units_row: Mapping[str, str] | None = None
+                 declared_units: Mapping[str, str] | None = None
                  ) -> tuple[dict[str, np.ndarray], np.ndarray, list[str]]:
     """The numeric columns ``known`` that a CSV with a header row has (``required`` all of
     them, at least one of ``any_of``), each as a float array, the file's line number of every
@@ -140,10 +140,10 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
     it: :mod:`jetpipe_ros.dataset.timebase`), and said; a column of ``known`` with no reading
     in any row is a sensor the bench does not have (a logger with a fixed layout), read as
     absent unless ``required``. A row repeated exactly (every value the same as the row
-    before, stamp included: a logger that wrote it twice) is read once. With ``units_row``
-    (column -> the unit it is declared in, or None for the contract's: :func:`_units_row`), a
-    first row under the header with no number in any column read is the logger's row of units:
-    read as such, not as data. Anything else
+    before, stamp included: a logger that wrote it twice) is read once. With
+    ``declared_units`` (column -> the unit declared for it; a column not in it is in the
+    contract's: :func:`_units_row`), a first row under the header with no number in any column
+    read is the logger's row of units: read as such, not as data. Anything else
     unreadable raises DatasetError naming the file, the line and the column (``hint`` says
     what the columns should hold); so does an infinite value."""
     try:
@@ -183,15 +183,15 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
         index = {c: header.index(c) for c in wanted}
         rows: list[list[float]] = []
         lines: list[int] = []
-        declared_units = units_row
+        first_row = declared_units is not None  # only it may be a row of units
         for row in reader:
             if (not row or row[0].lstrip().startswith("#")
                     or all(not cell.strip() for cell in row)):
                 continue
             line_no = first + reader.line_num
-            if units_row is not None and not rows:
+            if first_row:
+                first_row = False
                 cells = {c: row[index[c]].strip() if index[c] < len(row) else "" for c in wanted}
-                units_row = None  # only the first row under the header may be one
                 if all(cell and not _number(cell, decimal_comma) for cell in cells.values()):
                     notes.append(_units_row(path, line_no, cells, declared_units))
                     continue
@@ -255,11 +255,11 @@ def _number(cell: str, decimal_comma: bool) -> bool:
 
 
 def _units_row(path: Path, line: int, cells: Mapping[str, str],
-               declared: Mapping[str, str | None]) -> str:
+               declared: Mapping[str, str]) -> str:
     """The note on a logger's row of units ``cells`` (column -> its cell, brackets allowed:
     ``[mm]``) at ``line``; DatasetError when it gives a column in a unit other than the
-    contract's that dataset.yaml does not declare (``declared``: column -> the declared unit,
-    None for none): a row of units is read, never acted on, so nothing is converted unseen."""
+    contract's that dataset.yaml does not declare (``declared``: column -> the declared unit):
+    a row of units is read, never acted on, so nothing is converted unseen."""
     named = {c: cell.strip("[]() ") for c, cell in cells.items()}
     for column, unit in named.items():
         if declared.get(column) is None and unit != contract_unit(column):

@@ -642,6 +642,11 @@ def fit_profile(fit: FormFit, preps: list[Prepared], spacing: float = KNOT_SPACI
     return np.vstack([knots, factors[:k], factors[k:]])
 
 
+def judge(prep: Prepared, fit: FormFit) -> dict[str, float]:
+    """:func:`scores` of ``fit`` on the record's held-out moving samples."""
+    return scores(prep.friction[prep.test], fit.predict(prep)[prep.test], prep.v[prep.test])
+
+
 def scores(measured: np.ndarray, model: np.ndarray, v: np.ndarray) -> dict[str, float]:
     """NRMSE (RMS error over the measured range), R^2, R^2 within each direction of motion
     (what the sign flip between directions does not explain) and pooled over both, and the
@@ -745,10 +750,7 @@ class SealResult:
         (:func:`scores`): the samples its own fit is judged on, so the two scores compare how
         far the seal's fit carries to a record it did not see (another pressure, a repeat)."""
         self.unseen_fits = dict(fits)
-        self.unseen = {p.record.name: scores(p.friction[p.test],
-                                             fits[p.record.name].predict(p)[p.test],
-                                             p.v[p.test])
-                       for p in self.preps
+        self.unseen = {p.record.name: judge(p, fits[p.record.name]) for p in self.preps
                        if p.record.name in fits and p.test.sum() >= MIN_JUDGED}
 
     def model_of(self, form: str, prep: Prepared) -> FormFit:
@@ -836,9 +838,8 @@ def identify_seal(seal: str, preps: list[Prepared], split: float = 0.5,
         judged[form] = {}
         for p in preps:
             if p.test.sum() >= MIN_JUDGED:
-                fit = per_record[form].get(p.record.name, seal_fits[form])
-                judged[form][p.record.name] = scores(
-                    p.friction[p.test], fit.predict(p)[p.test], p.v[p.test])
+                judged[form][p.record.name] = judge(
+                    p, per_record[form].get(p.record.name, seal_fits[form]))
     left_out = tuple(p.record.file for p in preps
                      if p.record.role != "holdout" and p not in trained)
     unfitted = tuple(d for d in DIRECTIONS if not any(p.moves(d) for p in trained))
