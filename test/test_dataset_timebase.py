@@ -167,11 +167,19 @@ def test_the_diagnosis_takes_rates_from_100_hz_to_10_khz_bounds_included(tmp_pat
                                                r"\(10 kHz to 100 Hz\)"):
             prepare(ds)
     else:
-        dt = prepare(ds).dt
+        prepared = prepare(ds)
+        dt = prepared.dt
         # The model runs at it (0.010000000000000009 s was outside its range), and a replay.
         assert ModelParams().at_sample_time(dt)["integration.sample_time"] == dt
         assert main(["simulate", "--input", str(root / "e.csv"), "--out",
                      str(tmp_path / "sim.csv")]) == 0
+        # Slower than 1 kHz, a command that changes at every row is read as held between rows,
+        # which a controller faster than its logger did not do: said; at 10 kHz nothing to say.
+        slow = [n for n in prepared.notes if n.startswith("logged at 100 Hz")]
+        assert len(slow) == (rate == 100) and all("e.csv: if the controller" in n for n in slow)
+        if rate == 100:  # held steps (a square wave, a charge) leave nothing between rows
+            ds.experiments[0].u[:] = np.repeat([1.0, -1.0], ds.experiments[0].u.size // 2)
+            assert not any(n.startswith("logged at") for n in prepare(ds).notes)
 
 
 def test_what_cannot_be_read_is_refused(tmp_path):

@@ -44,6 +44,13 @@ SPLIT_GAP = 0.0255
 MIN_SAMPLES = 50
 #: Sample times [s] the diagnosis takes, 10 kHz to 100 Hz (docs/real_logs.md), bounds included.
 SAMPLE_TIMES = (1e-4, 1e-2)
+#: The data contract's nominal sample time [s] (1 kHz). A record logged slower is read as a
+#: controller at its own rate, the command held from row to row; a controller faster than its
+#: logger changed it between rows, which the record does not hold (:func:`slow_log_note`).
+CONTRACT_SAMPLE_TIME = 1e-3
+#: Share of its rows at which a record's command changes from the row before for the command to
+#: count as varying between rows (a sweep, a closed loop), not a set of held steps.
+VARYING_COMMAND = 0.5
 #: Fewest changes between successive samples from which a signal's lattice is read
 #: (:func:`resolution`).
 MIN_MOVES = 20
@@ -325,6 +332,9 @@ def prepare(dataset: Dataset, shift_rows: int = 0) -> Prepared:
     if missing:
         prepared.notes.append(f"no {' or '.join(missing)} measured: the diagnosis compares "
                               f"{', '.join(prepared.sensors)} only")
+    slow = slow_log_note(records, dt)
+    if slow:
+        prepared.notes.append(slow)
     for role, least in (("train", MIN_TRAIN_S), ("holdout", MIN_HOLDOUT_S)):
         have = prepared.seconds(role)
         if have < least:
@@ -349,6 +359,36 @@ def prepare(dataset: Dataset, shift_rows: int = 0) -> Prepared:
             f"share of the command's fast part follows the position's noise, a controller's "
             f"answer; left out of the frequency response")
     return prepared
+
+
+def slow_log_note(records: list[Record], dt: float) -> str | None:
+    """What a record logged slower than the contract's 1 kHz (sample time ``dt`` [s]) leaves
+    open, when its command varies from row to row in some experiment; else None.
+
+    Such a record is read as a controller at its own rate holds its command: from each row to
+    the next. A controller faster than its logger changed the command between rows, which the
+    record does not hold, and nothing in the record tells the two apart. Measured on the
+    model's own 1 kHz records logged every 5th row (200 Hz): a plant with no effect answered
+    ``unlisted`` (1.3 % left), a 25 Hz valve lag named with a natural frequency of the valve
+    24 % off (docs/real_logs.md, *A logger slower than its controller*)."""
+    if dt <= CONTRACT_SAMPLE_TIME * (1.0 + 1e-6):
+        return None
+    varying = sorted({r.entry.file for r in records
+                      if np.mean(np.diff(r.u) != 0.0) > VARYING_COMMAND})
+    if not varying:
+        return None
+    return (f"logged at {1.0 / dt:.4g} Hz, slower than the contract's 1 kHz: the command is "
+            f"read as held from each row to the next, as a controller at that rate holds it. "
+            f"It changes at most rows of {_few(varying)}: if the controller ran faster than "
+            f"its logger, the valve saw commands between the rows that the record does not "
+            f"hold, and part of any gap left is theirs; log the command at the controller's "
+            f"rate")
+
+
+def _few(names: list[str], most: int = 3) -> str:
+    """Up to ``most`` names, and how many more."""
+    return ", ".join(names[:most]) + (f" and {len(names) - most} more" if len(names) > most
+                                      else "")
 
 
 def swapped(prepared: Prepared) -> Prepared:
