@@ -216,6 +216,12 @@ def test_a_loggers_row_of_units_is_read_as_units_and_never_converts_unseen(clean
     np.testing.assert_array_equal(exp.y, ref.y)
     assert exp.t.size == ref.t.size
     assert exp.notes[0].startswith("line 2 read as the columns' units (t s, u V, y m, p1 Pa")
+    # The contract's units in the other spellings dataset.yaml takes for them.
+    spelled = {**si, "p1": "Pa absolute", "p2": "Paa"}
+    path.write_text("\n".join([",".join(header), ",".join(spelled.get(c, "-") for c in header),
+                               *rows]) + "\n")
+    exp, = read_dataset(tmp_path / "si").experiments
+    np.testing.assert_array_equal(exp.p1, ref.p1)
 
     gauge = tmp_path / "gauge"
     shutil.copytree(clean, gauge)

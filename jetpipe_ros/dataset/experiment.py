@@ -29,7 +29,7 @@ import numpy as np
 from jetpipe_ros import fileio
 from jetpipe_ros.dataset import plausibility, timebase
 from jetpipe_ros.dataset.errors import DatasetError
-from jetpipe_ros.dataset.units import contract_unit, declared, to_si
+from jetpipe_ros.dataset.units import contract_unit, declared, parse, to_si
 from jetpipe_ros.model.limits import NOMINAL, Limits
 
 #: Significant digits a record's sample time is read to: the step between stamps carries their
@@ -262,7 +262,7 @@ def _units_row(path: Path, line: int, cells: Mapping[str, str],
     a row of units is read, never acted on, so nothing is converted unseen."""
     named = {c: cell.strip("[]() ") for c, cell in cells.items()}
     for column, unit in named.items():
-        if declared.get(column) is None and unit != contract_unit(column):
+        if declared.get(column) is None and not _contract(column, unit):
             raise DatasetError(
                 f"{path}: line {line}: a row of units ({', '.join(named.values())}) gives "
                 f"column {column!r} in {unit!r}, where the contract reads "
@@ -272,6 +272,17 @@ def _units_row(path: Path, line: int, cells: Mapping[str, str],
     return (f"line {line} read as the columns' units ("
             f"{', '.join(f'{c} {u}' for c, u in named.items())}), not as data; the units used "
             f"are the contract's and those declared in dataset.yaml")
+
+
+def _contract(column: str, unit: str) -> bool:
+    """Whether a row of units' ``unit`` for ``column`` is the contract's, in any spelling the
+    declarations take (``Pa absolute``, ``Pa abs`` and ``Paa`` are ``Pa``). ``bar`` is not,
+    though declared it reads as absolute: a logger's row saying bar says neither gauge nor
+    absolute, which only a declaration settles."""
+    try:
+        return parse(column, unit).identity
+    except ValueError:
+        return False
 
 
 def _rows_said(rows: np.ndarray, what: str, first: list[str]) -> str:
