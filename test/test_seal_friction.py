@@ -16,9 +16,10 @@ from jetpipe_ros.cli import main
 from jetpipe_ros.dataset import DatasetError, read_dataset, read_records
 from jetpipe_ros.identify import seal as seal_module
 from jetpipe_ros.identify.drift import level_drift
-from jetpipe_ros.identify.seal import (FORMS, STATIC_FORMS, fit_form, measured_presliding,
-                                       no_profile, planes_of, prepare, scores, unseen_fit,
-                                       velocity_window)
+from jetpipe_ros.identify.seal import (FORMS, STATIC_FORMS, SealResult, fit_form,
+                                       measured_presliding, no_profile, planes_of, prepare,
+                                       scores, unseen_fit, velocity_window)
+from jetpipe_ros.identify.seal_report import describe_unseen
 from jetpipe_ros.model import ModelParams, load_params
 from jetpipe_ros.model.actuator import simulate
 from jetpipe_ros.model.flow import P_ATM
@@ -185,6 +186,29 @@ def test_a_seal_whose_level_is_linear_in_pressure_carries_to_a_record_it_did_not
     unseen, mine = (scores(low.friction[low.test], f.predict(low)[low.test], low.v[low.test])[
         "nrmse"] for f in (fit, own["rig_1bar"]))
     assert unseen < mine + 0.005, (mine, unseen)
+
+
+def test_a_fit_without_a_record_from_one_pressure_is_said_to_hold_that_level(tmp_path):
+    """Of records at 1 and 4 bar gauge, the fit without either saw one pressure and holds its
+    level (no slope from one pressure): a guess at the other's, which the console line says;
+    of records at 1, 4 and 7 bar, every fit without one has a slope, and nothing is said."""
+    preps = [prepare(r) for r in read_records(_pressure_series(tmp_path / "rig", 1.0))]
+    score = {"nrmse": 0.03, "r2_within": 0.5}
+
+    def result(kept):
+        names = [p.record.name for p in kept]
+        return SealResult("S", kept, {"static": dict.fromkeys(names)}, {},
+                          {"static": dict.fromkeys(names, score)}, "static",
+                          unseen=dict.fromkeys(names, score))
+
+    two = result(preps[:2])
+    assert two.unseen_from_one_pressure() == ["rig_1bar", "rig_4bar"]
+    assert describe_unseen(two).endswith("; for rig_1bar, rig_4bar the others lie at one "
+                                         "pressure, whose level the fit holds (no slope from "
+                                         "one pressure): a guess at theirs")
+    three = result(preps)
+    assert three.unseen_from_one_pressure() == []
+    assert "one pressure" not in describe_unseen(three)
 
 
 def test_a_record_whose_level_moved_is_missed_by_the_fit_without_it_and_said(tmp_path, capsys,

@@ -753,6 +753,20 @@ class SealResult:
         self.unseen = {p.record.name: judge(p, fits[p.record.name]) for p in self.preps
                        if p.record.name in fits and p.test.sum() >= MIN_JUDGED}
 
+    def unseen_from_one_pressure(self) -> list[str]:
+        """The records judged by a fit made without them whose other training records all sit
+        at one pressure (within :data:`MIN_PRESSURE_SPAN`), another than theirs: that fit holds
+        the level of that pressure (slope 0, :func:`combine`), a guess at theirs."""
+        trained = {p.record.name: (p.pressure - P_ATM) * 1e-5 for p in self.preps
+                   if p.record.name in self.per_record[self.selected]}
+        out = []
+        for name in self.unseen:
+            others = [g for n, g in trained.items() if n != name]
+            if (others and np.ptp(others) < MIN_PRESSURE_SPAN
+                    and abs(trained[name] - others[0]) >= MIN_PRESSURE_SPAN):
+                out.append(name)
+        return out
+
     def model_of(self, form: str, prep: Prepared) -> FormFit:
         """The fit that predicts a record: its own, or the seal's for a held-out record."""
         return self.per_record[form].get(prep.record.name, self.seal_fits[form])

@@ -65,7 +65,8 @@ def unseen_summary(res: SealResult) -> dict[str, Any] | None:
     names = list(res.unseen)
     own = [res.scores[res.selected][n] for n in names]
     unseen = [res.unseen[n] for n in names]
-    out: dict[str, Any] = {"records": len(names), "form": res.selected}
+    out: dict[str, Any] = {"records": len(names), "form": res.selected,
+                           "from_one_pressure": res.unseen_from_one_pressure()}
     for key in ("nrmse", "r2_within"):
         for label, rows in (("unseen", unseen), ("own", own)):
             values = [r[key] for r in rows]
@@ -88,11 +89,14 @@ def describe_unseen(res: SealResult) -> str | None:
                 f"{scale * u[f'{label}_median_{key}']:.2f}{unit})" if lo != hi
                 else f"{lo:.2f}{unit}")
 
+    flat = u["from_one_pressure"]
     return (f"a record judged by the seal's fit made without it (a pressure or a repeat the "
             f"fit did not see; {u['records']} records, {u['form']}): held-out NRMSE "
             f"{span('unseen', 'nrmse', 100, ' %')} against {span('own', 'nrmse', 100, ' %')} "
             f"by its own fit; R^2 within direction {span('unseen', 'r2_within', 1, '')} "
-            f"against {span('own', 'r2_within', 1, '')}")
+            f"against {span('own', 'r2_within', 1, '')}"
+            + (f"; for {', '.join(flat)} the others lie at one pressure, whose level the fit "
+               f"holds (no slope from one pressure): a guess at theirs" if flat else ""))
 
 
 def to_json(results: list[SealResult], split: float, notes: list[str],
@@ -248,11 +252,13 @@ def pressure_figure(res: SealResult) -> Any:
 def _unseen_table(res: SealResult) -> str:
     """Each training record's held-out NRMSE and R^2 within direction by its own fit and by
     the seal's fit made without it, with the words on what that measures."""
+    flat = res.unseen_from_one_pressure()
     rows = "".join(
         f"<tr><td>{html.escape(name)}</td>"
         f"<td>{res.scores[res.selected][name]['nrmse'] * 100:.2f} % / "
         f"{res.scores[res.selected][name]['r2_within']:.2f}</td>"
-        f"<td>{u['nrmse'] * 100:.2f} % / {u['r2_within']:.2f}</td></tr>"
+        f"<td>{u['nrmse'] * 100:.2f} % / {u['r2_within']:.2f}"
+        f"{' (from one pressure: its level held)' if name in flat else ''}</td></tr>"
         for name, u in res.unseen.items())
     return ("<h3>A record the fit did not see</h3><p>Each training record judged, on the same "
             "held-out samples, by its own fit and by the seal's fit made without it (from the "
