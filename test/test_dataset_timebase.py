@@ -182,6 +182,43 @@ def test_the_diagnosis_takes_rates_from_100_hz_to_10_khz_bounds_included(tmp_pat
             assert not any(n.startswith("logged at") for n in prepare(ds).notes)
 
 
+def test_a_clocks_stamps_read_at_their_rate(tmp_path):
+    """Stamps from a wall clock: dates and times (ISO 8601, what pandas writes for a time
+    index) are read as seconds from the first row's; an epoch in ns (declared) is counted from
+    its first stamp, where floats are 238 ns apart (a grid built there had a sample time of
+    0.99993 ms). Both read as the record stamped from 0, at exactly 1 ms. A number among dates,
+    or a unit declared for them, is refused."""
+    n = 3000
+    cols = signals(np.arange(n) * 1e-3)
+    start = np.datetime64("2026-12-05T12:00:00.000000")
+    clock = [str(start + np.timedelta64(k * 1000, "us")).replace("T", " ") for k in range(n)]
+    epoch = [str(1733400000000000000 + k * 1000000) for k in range(n)]
+
+    def stamped(name, stamps):
+        lines = write(tmp_path / name, cols).read_text().splitlines()
+        (tmp_path / name).write_text("\n".join(
+            [lines[0]] + [",".join([t] + line.split(",")[1:])
+                          for t, line in zip(stamps, lines[1:])]) + "\n")
+        return tmp_path / name
+
+    for stamps, units, said in (
+            (clock, None, "t read as dates and times (ISO 8601): seconds from the first row's, "
+                          "2026-12-05 12:00:00"),
+            (epoch, {"t": "ns"}, "t counted from the first stamp, 1733400000 s (a clock's "
+                                 "epoch, where floats are 238 ns apart)")):
+        exp = read_experiment(stamped("c.csv", stamps), units=units)
+        assert exp.dt == 1e-3 and said in exp.notes
+        np.testing.assert_array_equal(exp.t, np.arange(n) * 1e-3)
+        np.testing.assert_array_equal(exp.u, cols["u"])
+    with pytest.raises(DatasetError, match=r"column 't' holds dates and times, which carry "
+                                           r"their unit"):
+        read_experiment(stamped("d.csv", clock), units={"t": "ms"})
+    clock[7] = "0.007"
+    with pytest.raises(DatasetError, match=r"line 9, column 't': neither a number nor a date "
+                                           r"and time .*: '0.007'"):
+        read_experiment(stamped("e.csv", clock))
+
+
 def test_what_cannot_be_read_is_refused(tmp_path):
     t = np.arange(100) * 1e-3
     t[60:] += 0.5  # 500 steps lost after 60 rows: more filled than measured

@@ -22,6 +22,7 @@ import io
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from datetime import datetime
 from pathlib import Path
 
 import numpy as np
@@ -183,6 +184,7 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
         index = {c: header.index(c) for c in wanted}
         rows: list[list[float]] = []
         lines: list[int] = []
+        clock = _Clock()
         first_row = declared_units is not None  # only it may be a row of units
         for row in reader:
             if (not row or row[0].lstrip().startswith("#")
@@ -201,6 +203,10 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
                 cell = row[i].strip() if i < len(row) else ""
                 if decimal_comma:
                     cell = cell.replace(",", ".")
+                if col == "t" and cell and (clock.start is not None or not rows
+                                            and not _number(cell, False)):
+                    values.append(clock.seconds(path, line_no, cell))
+                    continue
                 try:
                     value = float(cell) if cell else math.nan
                 except ValueError:
@@ -212,6 +218,12 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
                 values.append(value)
             rows.append(values)
             lines.append(line_no)
+    if clock.start is not None:
+        if (declared_units or {}).get("t") is not None:
+            raise DatasetError(f"{path}: column 't' holds dates and times, which carry their "
+                               f"unit: remove the unit dataset.yaml declares for t")
+        notes.append(f"t read as dates and times (ISO 8601): seconds from the first row's, "
+                     f"{clock.start.isoformat(sep=' ')}")
     data = np.array(rows, dtype=float).reshape(len(rows), len(wanted))
     line_nos = np.array(lines, dtype=np.int64)
     empty = [c for j, c in enumerate(wanted) if rows and np.isnan(data[:, j]).all()]
@@ -243,6 +255,31 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
         raise DatasetError(f"{path}: needs at least {least} data rows, has {len(data)}")
     return ({c: np.ascontiguousarray(data[:, j]) for j, c in enumerate(wanted)}, line_nos,
             notes)
+
+
+class _Clock:
+    """A time column written as dates and times (ISO 8601, e.g. ``2026-12-05 12:00:00.001``:
+    what a logger with a wall clock, or pandas with a time index, writes), read as seconds
+    from the first row's, to the microsecond."""
+
+    def __init__(self) -> None:
+        self.start: datetime | None = None
+
+    def seconds(self, path: Path, line: int, cell: str) -> float:
+        """Seconds of ``cell`` (at ``line``) from the first row's date and time; DatasetError
+        when it is no date and time, or mixes a time zone with none."""
+        try:
+            stamp = datetime.fromisoformat(cell)
+        except ValueError:
+            raise DatasetError(f"{path}: line {line}, column 't': neither a number nor a date "
+                               f"and time (ISO 8601, e.g. 2026-12-05 12:00:00.001): "
+                               f"{cell!r}") from None
+        if self.start is None:
+            self.start = stamp
+        if (stamp.tzinfo is None) != (self.start.tzinfo is None):
+            raise DatasetError(f"{path}: line {line}, column 't': {cell!r} and the first row's "
+                               f"{self.start.isoformat(sep=' ')} differ in giving a time zone")
+        return (stamp - self.start).total_seconds()
 
 
 def _number(cell: str, decimal_comma: bool) -> bool:

@@ -24,7 +24,7 @@ PRESSURE_UNITS = (("bar", 1e5), ("kPa", 1e3), ("MPa", 1e6), ("psi", 6894.757),
 POSITION_UNITS = (("mm", 1e-3), ("cm", 1e-2), ("um", 1e-6))
 VELOCITY_UNITS = (("mm/s", 1e-3),)
 VOLTAGE_UNITS = (("mV", 1e-3),)
-TIME_UNITS = (("ms", 1e-3), ("us", 1e-6))
+TIME_UNITS = (("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9))
 
 
 def check(path: Path, cols: Mapping[str, np.ndarray], limits: Limits = NOMINAL,
@@ -117,6 +117,7 @@ def _sample_time(path: Path, t: np.ndarray, limits: Limits) -> None:
         if low <= dt * factor <= high:
             raise DatasetError(f"{where}: the median sample interval {dt:.6g} is not in "
                                f"seconds (plausible: [{low:g}, {high:g}] s); it looks like "
-                               f"{name}: multiply t by {factor:g}")
+                               f"{name}: declare it in dataset.yaml (units: {{t: {name}}}) "
+                               f"or multiply t by {factor:g}")
     raise DatasetError(f"{where}: the median sample interval {dt:.6g} s is outside the "
                        f"plausible [{low:g}, {high:g}] s")

@@ -75,6 +75,12 @@ MIN_INTERVALS = 20
 #: stamps jitter by +-0.3 of a sample and that lost 1 % of them is within 2 % of the truth
 #: (``test_twin.py``).
 RATE_TOLERANCE = 0.05
+#: Largest spacing of floats at a record's first stamp, as a share of its step, at which the
+#: stamps are kept as written. Stamps of a clock's epoch (1.7e9 s, or 1.7e18 ns declared) lie
+#: where floats are 0.24 us apart, 0.024 % of a 1 ms step: a grid built there has steps of two
+#: sizes, and the sample time read from them is off by as much (0.99993 ms for 1 ms); such a
+#: record is counted from its first stamp instead.
+EPOCH_SPACING = 1e-6
 
 
 def median_interval(intervals: Sequence[float]) -> float | None:
@@ -107,6 +113,22 @@ def regularise(path: Path, cols: Mapping[str, np.ndarray], lines: np.ndarray
     """
     t = cols["t"]
     step = float(np.median(np.diff(t)))
+    origin = float(t[0])
+    counted = np.spacing(abs(origin)) > EPOCH_SPACING * step
+    if counted:
+        t = t - origin
+        cols = {**cols, "t": t}
+    new, valid, notes = _regular(path, cols, lines, step)
+    if counted:
+        notes.insert(0, f"t counted from the first stamp, {origin:.10g} s (a clock's epoch, "
+                        f"where floats are {np.spacing(abs(origin)) * 1e9:.3g} ns apart)")
+    return new, valid, notes
+
+
+def _regular(path: Path, cols: Mapping[str, np.ndarray], lines: np.ndarray, step: float
+             ) -> tuple[dict[str, np.ndarray], np.ndarray | None, list[str]]:
+    """:func:`regularise` on stamps ``cols['t']`` whose median interval is ``step`` [s]."""
+    t = cols["t"]
     t0, dt, n = fit_grid(t, step)
     resid = t - (t0 + n * dt)
     worst = int(np.argmax(np.abs(resid)))

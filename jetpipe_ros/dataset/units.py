@@ -46,7 +46,7 @@ PSI = 6894.757293168361  #: Pa per psi (pound-force per square inch)
 
 #: Per quantity but pressure: (its SI unit, {accepted unit: factor to SI}).
 _SCALES: dict[str, tuple[str, dict[str, float]]] = {
-    "time": ("s", {"s": 1.0, "ms": 1e-3, "us": 1e-6}),
+    "time": ("s", {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}),
     "voltage": ("V", {"V": 1.0, "mV": 1e-3}),
     "length": ("m", {"m": 1.0, "mm": 1e-3, "cm": 1e-2, "um": 1e-6}),
     "velocity": ("m/s", {"m/s": 1.0, "mm/s": 1e-3}),
