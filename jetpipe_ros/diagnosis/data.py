@@ -48,6 +48,8 @@ SAMPLE_TIMES = (1e-4, 1e-2)
 #: controller at its own rate, the command held from row to row; a controller faster than its
 #: logger changed it between rows, which the record does not hold (:func:`slow_log_note`).
 CONTRACT_SAMPLE_TIME = 1e-3
+#: What the data note on a record logged slower than 1 kHz says (:func:`slow_log_note`).
+SLOW_LOG = "slower than the contract's 1 kHz"
 #: Share of its rows at which a record's command changes from the row before for the command to
 #: count as varying between rows (a sweep, a closed loop), not a set of held steps.
 VARYING_COMMAND = 0.5
@@ -377,7 +379,7 @@ def slow_log_note(records: list[Record], dt: float) -> str | None:
                       if np.mean(np.diff(r.u) != 0.0) > VARYING_COMMAND})
     if not varying:
         return None
-    return (f"logged at {1.0 / dt:.4g} Hz, slower than the contract's 1 kHz: the command is "
+    return (f"logged at {1.0 / dt:.4g} Hz, {SLOW_LOG}: the command is "
             f"read as held from each row to the next, as a controller at that rate holds it. "
             f"It changes at most rows of {_few(varying)}: if the controller ran faster than "
             f"its logger, the valve saw commands between the rows that the record does not "

@@ -34,7 +34,7 @@ from jetpipe_ros.diagnosis.calibration import CALIBRATION
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, Candidate, combinable, effect_of
 from jetpipe_ros.diagnosis.collinearity import (Imitator, imitated_effects, imitations,
                                                 sensor_words, with_added_sensors)
-from jetpipe_ros.diagnosis.data import Prepared, prepare, swapped
+from jetpipe_ros.diagnosis.data import SLOW_LOG, Prepared, prepare, swapped
 from jetpipe_ros.diagnosis.detection import detection_limits
 from jetpipe_ros.diagnosis.fit import (BUDGET, Fit, stacked, switched_off, uncertainty,
                                       with_nuisance)
@@ -614,6 +614,8 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
     if result["verdict"]["effects"] and any(units.ASSUMED in note
                                             for note in prepared.corrections):
         result["verdict"]["reason"] += "; " + _gauge_words(result["verdict"])
+    if result["verdict"]["effect"] != "none" and any(SLOW_LOG in n for n in prepared.notes):
+        result["verdict"]["reason"] += "; " + _slow_log_words(prepared.dt)
     result["gap"]["persistence"] = still.gap
     result["verdict"]["model_fits"] = fits
     if fits and result["verdict"]["effect"] == "none":
@@ -653,6 +655,20 @@ def _gauge_words(verdict: Mapping) -> str:
             f"assumed{size}: a reference off by a few kPa (the weather alone moves it that "
             f"much) shifts both pressures alike and reads as a sensor bias or a leak; declare "
             f"it and diagnose again before taking this answer")
+
+
+def _slow_log_words(dt: float) -> str:
+    """Words for an answer other than none on records logged slower than 1 kHz (sample time
+    ``dt`` [s]) whose command changes at most rows (:func:`data.slow_log_note`): if the
+    controller ran faster than its logger, the commands between rows are not in the record,
+    and they leave a gap of their own. Seen on the model's own 1 kHz records logged every 5th
+    row: a plant with no effect answered unlisted (1.3 % left), a 25 Hz valve lag named at
+    39.5 Hz (docs/real_logs.md)."""
+    return (f"the records are logged at {1.0 / dt:.4g} Hz and read as a controller at that "
+            f"rate holds its command; if the controller ran faster, the commands it gave "
+            f"between the rows are not in the records and leave a gap of their own (a plant "
+            f"with no effect logged so was answered unlisted): log the command at the "
+            f"controller's rate before taking this answer")
 
 
 def cannot_judge(prepared: Prepared) -> dict[str, str]:
