@@ -132,6 +132,28 @@ def test_an_offset_of_whole_rows_is_measured_and_read(nominal_record, tmp_path, 
     assert aligned.reading == ("aligned" if rows == 0 else "logging convention")
 
 
+def test_an_open_loop_command_is_no_controllers_reaction(tmp_path):
+    """A sweep written beforehand (40-88 Hz, no kind declared) that the position follows 3
+    rows later, about as large as the position sensor's noise: the command does not react to
+    the position, but the position's past predicts the sweep's next rows, and before only
+    closed-loop records were taken, a "reaction" 1 row late stood out at t = 10 and the records
+    would have been moved. Not a closed loop (the position's noise explains 19 % of the
+    command's fast part), so no controller's reaction is read."""
+    rng = np.random.default_rng(0)
+    t = np.arange(6000) * DT
+    u = 0.5 * np.sin(2 * np.pi * (40.0 * t + 4.0 * t ** 2))
+    y = np.concatenate([np.zeros(3), 5e-5 * u[:-3]]) + 15e-6 * rng.standard_normal(t.size)
+    p = 4.1648e5 + 500.0 * rng.standard_normal(t.size)
+    rows = "\n".join(",".join(f"{v:.9g}" for v in r) for r in zip(t, u, y, p, p[::-1]))
+    for name in ("a", "b"):
+        (tmp_path / f"{name}.csv").write_text("t,u,y,p1,p2\n" + rows + "\n")
+    (tmp_path / "dataset.yaml").write_text("experiments:\n  - file: a.csv\n  - file: b.csv\n"
+                                            "    role: holdout\n")
+    prepared = prepare(read_dataset(tmp_path))
+    assert not any(r.closed_loop for r in prepared.records)
+    assert controller_reaction(prepared) == (None, 0.0)
+
+
 @pytest.mark.parametrize("offset, lag", [(-3e-3, 0), (-3e-3, None), (3e-3, 0)])
 def test_an_offset_at_the_edge_of_its_search_is_not_acted_on(monkeypatch, offset, lag):
     """The model's offset fitted at the edge of its +-3 ms search (as on records of the position
