@@ -222,6 +222,12 @@ def test_a_loggers_row_of_units_is_read_as_units_and_never_converts_unseen(clean
                                *rows]) + "\n")
     exp, = read_dataset(tmp_path / "si").experiments
     np.testing.assert_array_equal(exp.p1, ref.p1)
+    # A first row of other text is no row of units: refused as the number it is not.
+    path.write_text("\n".join([",".join(header), ",".join("np.float64(0.0)" for _ in header),
+                               *rows]) + "\n")
+    with pytest.raises(DatasetError, match=r"line 2, column 't': neither a number nor a date "
+                                           r"and time .*: 'np.float64\(0.0\)'"):
+        read_dataset(tmp_path / "si")
 
     gauge = tmp_path / "gauge"
     shutil.copytree(clean, gauge)

@@ -20,6 +20,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -194,7 +195,7 @@ def read_columns(path: Path, required: Sequence[str], known: Sequence[str], *,
             if first_row:
                 first_row = False
                 cells = {c: row[index[c]].strip() if index[c] < len(row) else "" for c in wanted}
-                if all(cell and not _number(cell, decimal_comma) for cell in cells.values()):
+                if all(_unit_like(cell) for cell in cells.values()):
                     notes.append(_units_row(path, line_no, cells, declared_units))
                     continue
             values = []
@@ -280,6 +281,17 @@ class _Clock:
             raise DatasetError(f"{path}: line {line}, column 't': {cell!r} and the first row's "
                                f"{self.start.isoformat(sep=' ')} differ in giving a time zone")
         return (stamp - self.start).total_seconds()
+
+
+def _unit_like(cell: str) -> bool:
+    """Whether ``cell`` reads as a unit (``mm``, ``[Pa]``, ``m/s^2``, ``bar gauge``): a letter
+    first, no digit but an exponent's or a leading ``1/``, no parenthesis or quote within. A
+    first row of such cells is a logger's row of units; one of other text (``np.float64(0.0)``,
+    a label) is refused as not a number, naming the cell."""
+    inner = re.sub(r"\^-?\d+", "", cell.strip().strip("[]()").strip())
+    inner = inner[2:] if inner.startswith("1/") else inner
+    return bool(inner) and (inner[0].isalpha() or inner[0] in "%°µ") and not re.search(
+        r"[\d()\[\]{}=,;:'\"]", inner)
 
 
 def _number(cell: str, decimal_comma: bool) -> bool:
