@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from jetpipe_ros.campaign import default_campaign, run_campaign_offline
-from jetpipe_ros.dataset import read_dataset
+from jetpipe_ros.dataset import DatasetError, read_dataset
 from jetpipe_ros.workflows import diagnose
 from jetpipe_ros.diagnosis.alignment import Z_OFFSET, align, controller_reaction
 from jetpipe_ros.diagnosis.data import prepare
@@ -195,9 +195,38 @@ def test_without_both_pressures_the_controller_is_believed_over_the_model(monkey
         assert fewer.shift_rows == lag and fewer.offset_s == -2.5e-3
         assert fewer.reading == ("aligned" if lag == 0 else "logging convention")
         assert words in fewer.words and "-2.50 ms" in fewer.words
-    # Without a closed loop there is nothing else to go by: the model's offset is acted on.
+    # Without a closed loop nothing else tells, and the model's offset, off by 2-3 ms on
+    # aligned records of these sensors, is not acted on: said, with the declaration to make.
     monkeypatch.setattr(alignment, "controller_reaction", lambda p: (None, 0.0))
-    assert align(SimpleNamespace(dt=DT, sensors=("y",)), ModelParams()).shift_rows == 2
+    for sensors in (("y",), ("y", "p1")):
+        alone = align(SimpleNamespace(dt=DT, sensors=sensors), ModelParams())
+        assert alone.shift_rows == 0 and alone.reading == "not checked"
+        assert "-2.50 ms" in alone.words and "measured: after_command" in alone.words
+    assert align(SimpleNamespace(dt=DT, sensors=("y", "p1", "p2")),
+                 ModelParams()).shift_rows == 2
+
+
+def test_a_logger_that_measures_after_the_command_is_declared(nominal_record, tmp_path):
+    """A logger that writes beside each command what it measured after that command acted
+    (every measurement a row early), declared in dataset.yaml (measured: after_command), reads
+    as the contract's record: each command beside the measurements taken before it acted,
+    the first and last rows without a partner, said in the notes. An unknown value is refused
+    naming the field and the values there are."""
+    root = Path(shutil.copytree(nominal_record, tmp_path / "data"))
+    relog(root, rows=1)
+    index = root / "dataset.yaml"
+    doc = yaml.safe_load(index.read_text())
+    index.write_text(yaml.safe_dump({"measured": "after_command", **doc}, sort_keys=False))
+    for exp, ref in zip(read_dataset(root).experiments, read_dataset(nominal_record).experiments):
+        np.testing.assert_array_equal(exp.u, ref.u[1:-1])
+        np.testing.assert_array_equal(exp.y, ref.y[1:-1])
+        np.testing.assert_array_equal(exp.p2, ref.p2[1:-1])
+        assert "measured: after_command" in exp.notes[-1]
+    doc["experiments"][0]["measured"] = "later"
+    index.write_text(yaml.safe_dump(doc, sort_keys=False))
+    with pytest.raises(DatasetError, match=r"experiments\[0\] \(.*\): field 'measured': must be "
+                                           r"one of before_command, after_command"):
+        read_dataset(root)
 
 
 def test_an_open_loop_record_late_by_a_row_is_ambiguous_with_a_valve_delay(nominal_record,

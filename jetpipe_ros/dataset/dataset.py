@@ -9,10 +9,13 @@
         role: train         # train | holdout, optional
         units: {u: mV}      # units of this CSV's columns, optional (overrides the top level)
         columns: {cmd: u}   # this CSV's own column names -> the contract's, optional
+        measured: after_command  # the logger writes beside each command what it measured
+                                 # after that command acted, optional (before_command)
     units: {t: ms, p1: bar gauge, p2: bar gauge, gauge_reference: 1013.25 hPa}  # optional,
                     # for every experiment; gauge_reference: the ambient gauge is relative to;
                     # position_zero: what the position sensor reads at mid-stroke (25 mm)
     columns: {time: t, position: y}  # optional, for every experiment (an entry's own override)
+    measured: before_command   # optional, for every experiment (an entry's own overrides it)
 
 Units (:mod:`jetpipe_ros.dataset.units`) are converted to SI when the experiments are read; each
 experiment's notes, and :attr:`Dataset.notes`, say what was converted and what was done to its
@@ -40,7 +43,7 @@ import yaml
 from jetpipe_ros import fileio
 from jetpipe_ros.dataset.errors import DatasetError
 from jetpipe_ros.dataset.experiment import (COMPLETE, OPTIONAL, REQUIRED, Experiment,
-                                            read_experiment, write_experiment)
+                                            measured_later, read_experiment, write_experiment)
 from jetpipe_ros.dataset.units import declared
 from jetpipe_ros.fileio import load_yaml
 from jetpipe_ros.model.limits import NOMINAL, Limits
@@ -50,6 +53,15 @@ INDEX = "dataset.yaml"
 CONTRACT = (*COMPLETE, *OPTIONAL)
 PISTON = ("free", "locked")
 ROLES = ("train", "holdout")
+#: When a logger took the measurements on a row (``measured:`` of dataset.yaml): before the
+#: command beside them acted (the contract: a sampled loop reads its sensors, then commands),
+#: or after it acted (the other common convention: every measurement a row early).
+MEASURED_WHEN = ("before_command", "after_command")
+#: The note on an experiment read with ``measured: after_command``.
+AFTER_COMMAND = ("measured after the command beside them acted, as dataset.yaml declares "
+                 "(measured: after_command): moved a row later, so that each command is paired "
+                 "with what was measured before it acted, as the contract reads; its last "
+                 "command dropped")
 
 
 @dataclass
@@ -68,6 +80,11 @@ class Entry:
     #: The CSV's own column names -> the contract's (``columns:`` of dataset.yaml, the
     #: top level's overridden by the entry's own); units are declared by the contract's names.
     columns: dict[str, str] = field(default_factory=dict)
+    #: When the logger took the measurements on a row against the command beside it
+    #: (``measured:`` of dataset.yaml, the top level's overridden by the entry's own):
+    #: ``before_command`` (the contract) or ``after_command`` (after that command acted: read
+    #: a row later, :data:`AFTER_COMMAND`).
+    measured: str = "before_command"
 
     @property
     def name(self) -> str:
@@ -89,6 +106,8 @@ class Entry:
             out["units"] = dict(self.units)
         if self.columns:
             out["columns"] = dict(self.columns)
+        if self.measured != MEASURED_WHEN[0]:
+            out["measured"] = self.measured
         out.update(self.extra)
         return out
 
@@ -142,10 +161,24 @@ def merged_columns(top: Mapping[str, str], own: Mapping[str, str]) -> dict[str, 
     return {**{s: t for s, t in top.items() if t not in own.values()}, **own}
 
 
+def measured_when(where: str, raw: Any, default: str = "before_command") -> str:
+    """The ``measured:`` field at ``where``: one of :data:`MEASURED_WHEN` (``default`` when
+    absent); DatasetError naming it otherwise."""
+    if raw is None:
+        return default
+    if raw not in MEASURED_WHEN:
+        raise DatasetError(f"{where}: must be one of {', '.join(MEASURED_WHEN)} (when the logger "
+                           f"took the measurements on a row: before the command beside them "
+                           f"acted, as the contract reads, or after), got {raw!r}")
+    return raw
+
+
 def parse_entry(index: Path, i: int, raw: Any, units: Mapping[str, str] | None = None,
-                columns: Mapping[str, str] | None = None) -> Entry:
+                columns: Mapping[str, str] | None = None,
+                measured: str = "before_command") -> Entry:
     """Validate experiment ``i`` of ``index``; raise DatasetError naming entry and field.
-    ``units`` and ``columns`` are the dataset's (top level), which the entry's own override."""
+    ``units``, ``columns`` and ``measured`` are the dataset's (top level), which the entry's
+    own override."""
     where = f"{index}: experiments[{i}]"
     if not isinstance(raw, Mapping):
         raise DatasetError(f"{where}: expected a mapping with at least 'file', got {raw!r}")
@@ -171,8 +204,11 @@ def parse_entry(index: Path, i: int, raw: Any, units: Mapping[str, str] | None =
                            f"{', '.join(ROLES)}, got {role!r}")
     own = declared(f"{where} ({file}): field 'units'", raw.pop("units", None))
     names = column_names(f"{where} ({file}): field 'columns'", raw.pop("columns", None))
+    when = measured_when(f"{where} ({file}): field 'measured'", raw.pop("measured", None),
+                         measured)
     return Entry(file=file, piston=piston, load_force=float(load), role=role, extra=raw,
-                 units={**(units or {}), **own}, columns=merged_columns(columns or {}, names))
+                 units={**(units or {}), **own}, columns=merged_columns(columns or {}, names),
+                 measured=when)
 
 
 #: A number in a note (not the digit of a name such as ``p1``).
@@ -238,7 +274,8 @@ def read_index(root: str | Path) -> list[Entry]:
         raise DatasetError(f"{index}: expected a top-level 'experiments:' list")
     units = declared(f"{index}: units", doc.get("units"))
     columns = column_names(f"{index}: columns", doc.get("columns"))
-    entries = [parse_entry(index, i, raw, units, columns)
+    measured = measured_when(f"{index}: measured", doc.get("measured"))
+    entries = [parse_entry(index, i, raw, units, columns, measured)
                for i, raw in enumerate(doc["experiments"])]
     if not entries:
         raise DatasetError(f"{index}: 'experiments' is empty")
@@ -259,6 +296,10 @@ def read_dataset(root: str | Path, required: Iterable[str] = REQUIRED,
     entries = read_index(root)
     experiments = [read_experiment(root / e.file, required, limits, e.units,
                                    columns=e.columns) for e in entries]
+    for i, e in enumerate(entries):
+        if e.measured == "after_command":
+            experiments[i] = measured_later(experiments[i], 1)
+            experiments[i].notes.append(AFTER_COMMAND)
     return Dataset(root=root, entries=entries, experiments=experiments)
 
 

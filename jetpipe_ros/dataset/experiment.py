@@ -18,6 +18,7 @@ what it converted or changed. Writing goes through a temporary file renamed into
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import math
 import re
@@ -91,6 +92,28 @@ class Experiment:
         cols = {k: v for k, v in cols.items() if v is not None}
         cols.update(self.extra)
         return cols
+
+
+def measured_later(exp: Experiment, rows: int) -> Experiment:
+    """The experiment with its measured columns moved ``rows`` rows later relative to the
+    command (``rows`` > 0: the logger wrote each measurement that many rows early, beside a
+    command that had already acted; < 0: late), the rows left without a partner dropped at
+    each end; extra columns are not kept."""
+    if rows == 0:
+        return exp
+    n = exp.t.size - abs(rows)
+    cmd = slice(rows, None) if rows > 0 else slice(0, n)
+    meas = slice(0, n) if rows > 0 else slice(-rows, None)
+    out = dataclasses.replace(exp, t=exp.t[cmd], u=exp.u[cmd], extra={},
+                              notes=list(exp.notes))
+    if exp.f_load is not None:
+        out.f_load = exp.f_load[cmd]
+    for c in (*MEASURED, "v"):
+        x = getattr(exp, c)
+        setattr(out, c, None if x is None else x[meas])
+    if exp.valid is not None:
+        out.valid = exp.valid[meas]
+    return out
 
 
 def read_experiment(path: str | Path, required: Iterable[str] = REQUIRED,

@@ -27,7 +27,7 @@ import numpy as np
 from scipy.signal import savgol_filter
 from scipy.stats import median_abs_deviation
 
-from jetpipe_ros.dataset import Dataset, DatasetError, Entry, Experiment
+from jetpipe_ros.dataset import Dataset, DatasetError, Entry, Experiment, measured_later
 
 SIGNALS = ("y", "p1", "p2")
 #: Least total length of the training and of the holdout data [s].
@@ -289,7 +289,7 @@ def prepare(dataset: Dataset, shift_rows: int = 0) -> Prepared:
     records = []
     notes = list(getattr(dataset, "notes", []))
     for (entry, exp), held in zip(dataset, holdout):
-        exp = _shifted(exp, shift_rows)
+        exp = measured_later(exp, shift_rows)
         parts = _parts(exp, dt)
         if len(parts) > 1:
             notes.append(f"{entry.file}: split into {len(parts)} parts at runs of more than "
@@ -412,28 +412,8 @@ def shifted(dataset: Dataset, rows: int) -> Dataset:
     """``dataset`` with every experiment's measured columns moved ``rows`` rows later relative
     to its command, as :func:`prepare`'s ``shift_rows`` moves them (for tools that read the
     experiments themselves)."""
-    return dataclasses.replace(dataset, experiments=[_shifted(exp, rows)
+    return dataclasses.replace(dataset, experiments=[measured_later(exp, rows)
                                                      for exp in dataset.experiments])
-
-
-def _shifted(exp: Experiment, rows: int) -> Experiment:
-    """The experiment with its measured columns moved ``rows`` rows later relative to the
-    command (``rows`` > 0: the logger wrote each measurement that many rows early)."""
-    if rows == 0:
-        return exp
-    n = exp.t.size - abs(rows)
-    cmd = slice(rows, None) if rows > 0 else slice(0, n)
-    meas = slice(0, n) if rows > 0 else slice(-rows, None)
-    out = dataclasses.replace(exp, t=exp.t[cmd], u=exp.u[cmd], extra={})
-    if exp.f_load is not None:
-        out.f_load = exp.f_load[cmd]
-    for c in ("y", "p1", "p2", "v"):
-        x = getattr(exp, c)
-        setattr(out, c, None if x is None else x[meas])
-    valid = getattr(exp, "valid", None)
-    if valid is not None:
-        out.valid = valid[meas]
-    return out
 
 
 def _slice(exp: Experiment, lo: int, hi: int) -> Experiment:
