@@ -9,5 +9,5 @@ from jetpipe_ros.dataset.experiment import (COMPLETE, MEASURED, REQUIRED, Experi
                                             measured_later, read_experiment, write_experiment)
 
 __all__ = ["COMPLETE", "MEASURED", "REQUIRED", "Dataset", "DatasetError", "Entry", "Experiment",
-           "RigRecord", "grouped_notes", "measured_later", "read_dataset", "read_experiment", "read_index",
-           "read_records", "write_dataset", "write_experiment"]
+           "RigRecord", "grouped_notes", "measured_later", "read_dataset", "read_experiment",
+           "read_index", "read_records", "write_dataset", "write_experiment"]

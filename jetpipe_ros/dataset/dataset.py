@@ -84,7 +84,7 @@ class Entry:
     #: (``measured:`` of dataset.yaml, the top level's overridden by the entry's own):
     #: ``before_command`` (the contract) or ``after_command`` (after that command acted: read
     #: a row later, :data:`AFTER_COMMAND`).
-    measured: str = "before_command"
+    measured: str = MEASURED_WHEN[0]
 
     @property
     def name(self) -> str:
@@ -161,7 +161,7 @@ def merged_columns(top: Mapping[str, str], own: Mapping[str, str]) -> dict[str, 
     return {**{s: t for s, t in top.items() if t not in own.values()}, **own}
 
 
-def measured_when(where: str, raw: Any, default: str = "before_command") -> str:
+def measured_when(where: str, raw: Any, default: str = MEASURED_WHEN[0]) -> str:
     """The ``measured:`` field at ``where``: one of :data:`MEASURED_WHEN` (``default`` when
     absent); DatasetError naming it otherwise."""
     if raw is None:
@@ -175,7 +175,7 @@ def measured_when(where: str, raw: Any, default: str = "before_command") -> str:
 
 def parse_entry(index: Path, i: int, raw: Any, units: Mapping[str, str] | None = None,
                 columns: Mapping[str, str] | None = None,
-                measured: str = "before_command") -> Entry:
+                measured: str = MEASURED_WHEN[0]) -> Entry:
     """Validate experiment ``i`` of ``index``; raise DatasetError naming entry and field.
     ``units``, ``columns`` and ``measured`` are the dataset's (top level), which the entry's
     own override."""
@@ -297,7 +297,7 @@ def read_dataset(root: str | Path, required: Iterable[str] = REQUIRED,
     experiments = [read_experiment(root / e.file, required, limits, e.units,
                                    columns=e.columns) for e in entries]
     for i, e in enumerate(entries):
-        if e.measured == "after_command":
+        if e.measured == MEASURED_WHEN[1]:
             experiments[i] = measured_later(experiments[i], 1)
             experiments[i].notes.append(AFTER_COMMAND)
     return Dataset(root=root, entries=entries, experiments=experiments)

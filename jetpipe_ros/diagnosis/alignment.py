@@ -109,7 +109,8 @@ class Alignment:
     controller_rows: int | None  #: closed loop: row lag at which the command follows y
     controller_z: float  #: strength of that reaction [standard errors]
     shift_rows: int  #: correction applied: measurements moved this many rows later
-    reading: str  #: aligned | logging convention | extra delay or logging | extra delay | not checked
+    #: aligned | logging convention | extra delay or logging | extra delay | not checked
+    reading: str
     words: str  #: the reading in a sentence
     used: str  #: which records the model estimate used
 
