@@ -107,7 +107,8 @@ def read_conventions(data: Dataset, base: ModelParams) -> tuple[Dataset, list[st
                     f"the position's noise, which alone tells where a logger put the "
                     f"measurements without a model; a logger that wrote each measurement a row "
                     f"early (after the command beside it acted) would make the valve's delay "
-                    f"{ms:.3g} ms shorter here (docs/real_logs.md)")
+                    f"{ms:.3g} ms shorter here: declare it in dataset.yaml (measured: "
+                    f"after_command; docs/real_logs.md)")
     elif rows:
         data = shifted(data, rows)
         said.append(f"time base: the closed-loop records' controller reacts to the position "
