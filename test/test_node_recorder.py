@@ -258,6 +258,9 @@ def _recorded(launch, bag, seconds: float, *sim_args: str) -> tuple[object, obje
     rec = launch(["-m", "jetpipe_ros.nodes.id_recorder", "--ros-args", "-r", ns,
                   "-p", "mode:=record", "-p", f"bag:={bag}"])
     rec.wait_for("started: record only", STARTUP)
+    # From the first sample on: discovery took 4.5 s once on a loaded machine (536 samples in
+    # a 5 s window counted from the start).
+    rec.wait_for("recording: first", STARTUP)
     time.sleep(seconds)
     rec.popen.send_signal(signal.SIGTERM)
     # Closing takes well under a second alone; 20 s were once not enough beside two self-check

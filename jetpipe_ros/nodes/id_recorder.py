@@ -223,6 +223,8 @@ class Recorder(Node):
                 self.progressed = self.heard
             if last is None:
                 self._first[name] = stamp
+                if is_joint_states and not self.campaign:  # record mode: data flows from here
+                    self.get_logger().info(f"recording: first {name} sample")
             else:
                 if is_joint_states:
                     self._intervals.append(stamp - last)
