@@ -253,7 +253,7 @@ def align(prepared: Prepared, nominal: ModelParams) -> Alignment:
     if len(pressures) < 2:
         through = f"the position and {pressures[0]}" if pressures else "the position alone"
         if lag is None:
-            return _unchecked(offset, se, lag, z, est, used, through)
+            return _unchecked(offset, se, z, est, used, through)
         return _controller_believed(offset, se, lag, z, est, used, through)
     if lag:  # the controller reacts off the logged row: the logger, by the contract's loop
         shift = max(lag, -rows) if sooner else lag
@@ -319,8 +319,8 @@ def _controller_believed(offset: float, se: float | None, lag: int, z: float, es
     return Alignment(offset, se, lag, z, lag, "logging convention", words, used)
 
 
-def _unchecked(offset: float, se: float | None, lag: int | None, z: float, est: str,
-               used: str, through: str) -> Alignment:
+def _unchecked(offset: float, se: float | None, z: float, est: str, used: str,
+               through: str) -> Alignment:
     """The reading of records without both pressures and without a closed loop whose
     controller reacts: nothing to act on. The model's offset, read ``through`` the sensors
     there are, is said, not acted on: on aligned records it was off by 2-3 ms at about 3
@@ -332,7 +332,7 @@ def _unchecked(offset: float, se: float | None, lag: int | None, z: float, est: 
              f"effect or a miscalibrated chamber moves by milliseconds; the records are "
              f"diagnosed as logged. A logger that writes beside each command the measurements "
              f"taken after it acted is declared in dataset.yaml (measured: after_command)")
-    return Alignment(offset, se, lag, z, 0, "not checked", words, used)
+    return Alignment(offset, se, None, z, 0, "not checked", words, used)
 
 
 def _controller_reading(lag: int) -> str:
