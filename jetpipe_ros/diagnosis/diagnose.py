@@ -107,8 +107,9 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
     the training data (then no other basin has anything to explain), also from the effect at
     the size it took alone (with the nominal knobs or the recalibration, whichever fits the
     training data better there) when alone it removed at least :data:`JOINT_MIN` of the noise
-    variance; the lower training error is kept. One descent from the start that fits best does
-    not do: the recalibration fits best by construction, and from there a descent can stall
+    variance; the fit of lower cost is kept (:attr:`fit.Fit.cost`: the training error with the
+    calibration knobs' prior, what each descent minimised). One descent from the start that fits
+    best does not do: the recalibration fits best by construction, and from there a descent can stall
     where the effect is nothing (a seal-gap leak's orifice: 2.27 % left held out, where from the
     leak's own size the fit converged at 0.42 %, its area within 1 % of the same value from
     ten starts).
@@ -119,7 +120,7 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
     So, unless the best joint fit already leaves no gap of :data:`verdict.NOISE_GAP` on the
     training data (then no other basin has anything to explain), each candidate is also refitted
     from the recalibration with those knobs back at nominal, the effect's first knob searched on
-    a grid there (:func:`fit.fit`), and the lower training error of the two joint fits is kept.
+    a grid there (:func:`fit.fit`), and the joint fit of lower cost is kept.
     A candidate that removes less than :data:`JOINT_MIN` of the noise variance from the training
     error both alone and on the recalibrated model is not refitted: at that size it could not
     show; unless it carries calibration knobs' signatures by construction
@@ -150,7 +151,7 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
 
     def keep(joint: Sequence[Fit]) -> None:
         for j in joint:
-            if j.train.total <= best[j.name].train.total:
+            if j.cost <= best[j.name].cost:
                 best[j.name] = j
 
     plain = [(e, f) for e, f in todo if not CANDIDATES[e].carries]
@@ -528,7 +529,7 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
             pairs, singles = fit_pairs(fitter, nominal, ranking[0].fit,
                                        {f.name: f for f in on_cal}, names, progress)
             on_cal = [min([f, *(s for s in singles if s.name == f.name)],
-                          key=lambda x: x.train.total) for f in on_cal] + pairs
+                          key=lambda x: x.cost) for f in on_cal] + pairs
             ranking = rank(on_cal, cal.holdout, cal.holdout_windows, dt)
             progress("each pair with each member switched off, the rest as fitted")
             for r in ranking:
