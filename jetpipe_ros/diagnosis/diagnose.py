@@ -109,10 +109,10 @@ def fit_effects(fitter: Fitter, nominal: ModelParams, nom_train: Score, cal: Fit
     training data better there) when alone it removed at least :data:`JOINT_MIN` of the noise
     variance; the fit of lower cost is kept (:attr:`fit.Fit.cost`: the training error with the
     calibration knobs' prior, what each descent minimised). One descent from the start that fits
-    best does not do: the recalibration fits best by construction, and from there a descent can stall
-    where the effect is nothing (a seal-gap leak's orifice: 2.27 % left held out, where from the
-    leak's own size the fit converged at 0.42 %, its area within 1 % of the same value from
-    ten starts).
+    best does not do: the recalibration fits best by construction, and from there a descent can
+    stall where the effect is nothing (a seal-gap leak's orifice: 2.27 % left held out, where
+    from the leak's own size the fit converged at 0.42 %, its area within 1 % of the same value
+    from ten starts).
 
     A knob the recalibration drove to its bound is suspect of standing in for something it
     does not model (a valve hysteresis taken as 2.5 times the friction): the effect's basin then
