@@ -208,9 +208,8 @@ def test_a_joint_fit_also_descends_from_the_effects_own_size(left, descends_agai
     (effect on top) and, while that leaves a training gap of NOISE_GAP or more (here
     100 sqrt(3e-4 - 1e-4) = 1.41 %, against 0.32 % for 1.1e-4), also from the size it took
     alone; the fit kept is the one of lower training error (their priors alike). The
-    recalibration's start fits
-    best by construction, and a single descent from there stalled with a seal-gap leak at
-    nothing (2.27 % left held out against 0.42 %)."""
+    recalibration's start fits best by construction, and a single descent from there stalled
+    with a seal-gap leak at nothing (2.27 % left held out against 0.42 %)."""
     from jetpipe_ros.diagnosis.diagnose import fit_effects
     from jetpipe_ros.diagnosis.verdict import NOISE_GAP
 
