@@ -154,6 +154,34 @@ def test_a_second_effect_switched_off_must_lose_what_the_pair_gains(rng):
             "supply_pressure": pytest.approx(off_gap)}
 
 
+def test_a_single_effect_switched_off_must_lose_most_of_what_it_gains(rng):
+    """Seed 9437's actuator with no effect a position sensor can see (case 7, the position
+    alone, a campaign with a 2.6 V square wave trained on): the recalibration leaves 0.079 %,
+    a polytropic gas fitted with it 0.045 %, significantly; switched off, the calibration as
+    fitted beside it, 0.048 %: the joint fit found a better calibration, the gas carries a
+    tenth of the gain, so nothing is named and the reason says why. The same fit whose gas,
+    switched off, leaves 0.075 % (nine tenths of the gain carried) is named; so is one never
+    scored switched off."""
+    level = lambda g: FLOOR + (g / 100) ** 2  # noqa: E731
+    base = windows(level(0.079), rng, jitter=1e-9)
+    gas = "thermal:polytropic"
+    for off_gap, named in ((0.048, None), (0.075, gas), (None, gas)):
+        single = fit(f"calibration+{gas}", 0.045, windows(level(0.045), rng, jitter=1e-9))
+        ranking = rank([single], score(0.079), base, 1e-3)
+        (row,) = ranking
+        assert row.explains
+        if off_gap is not None:
+            row.switched_off = {gas: fit("calibration", off_gap,
+                                         windows(level(off_gap), rng, jitter=1e-9))}
+        v = decide(ranking, score(0.079), base, None)
+        assert (v.winner.fit.effect if v.winner else None) == ("thermal" if named else None)
+        idle = off_gap == 0.048
+        assert left_out(row, ranking, None) == (f"{gas} switched off leaves as little"
+                                                if idle else None)
+        assert ("switched off, the calibration as fitted beside it, the fit leaves 0.05 %: "
+                "the improvement is that calibration's" in v.reason) == idle
+
+
 def test_a_second_effect_that_takes_a_third_of_a_large_remainder_is_not_named(rng):
     """A supply that droops with the flow: the constant supply explains 88 % of the gap and
     leaves 4.0 %; a sensor lag beside it takes a third of that (2.68 % left, far beyond noise,

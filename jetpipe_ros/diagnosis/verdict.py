@@ -180,6 +180,30 @@ def _better_single(pair: Ranked, ranking: Sequence[Ranked]) -> Ranked | None:
     return min(singles, key=lambda r: r.fit.holdout.total) if singles else None
 
 
+def idle_single(single: Ranked) -> bool:
+    """True when a single effect fitted jointly with the calibration does not carry the
+    held-out improvement it is credited with: scored again with the effect switched off, the
+    calibration as fitted beside it (:attr:`Ranked.switched_off`, nothing refitted), the fit
+    loses less than :data:`MOSTLY` of what it gains over its base (the recalibration alone).
+
+    The joint fit then found a better calibration, and the effect took the credit for it: the
+    pairs' idle member (:func:`idle_second`) met by a single effect. Seen with the position
+    alone on an actuator with nothing a position sensor can see (seed 9437, a campaign with a
+    2.6 V square wave trained on, development): a polytropic index of 1.002 took 43 % of a
+    0.079 % gap, leaving 0.045 %; switched off, 0.048 %. Effects that were right there carried
+    most of theirs: an elasto-plastic friction 0.17 % (0.24 % switched off, base 0.25 %), a
+    measured seal 0.33 % (0.52 %, base 0.48 %), a drooping supply 0.23 % (1.26 %, base 0.53 %).
+    False when it was not scored switched off (an effect fitted on the recalibration with
+    its knobs held loses all of its gain when switched off)."""
+    if len(single.fit.effects) != 1:
+        return False
+    off = single.switched_off.get(single.fit.effects[0])
+    gained = single.base_gap - single.fit.holdout.gap
+    if off is None or gained <= 0.0:
+        return False
+    return off.holdout.gap - single.fit.holdout.gap < MOSTLY * gained
+
+
 def pinned_second(pair: Ranked, ranking: Sequence[Ranked]) -> list[str]:
     """The knobs of the pair's second effect (the member beside its better single one) that
     sit at the far edge of their search range (:meth:`KnobGroup.pinned`), as
@@ -256,18 +280,20 @@ def left_out(r: Ranked, ranking: Sequence[Ranked], floor_windows: np.ndarray | N
     same, in a few words, or None when no rule leaves it out.
 
     A single effect is left out with a knob at the far edge of its search range
-    (:func:`pinned_single`). A pair is named only when its second effect pays for itself on
-    held-out data: the pair removes at least :data:`MIN_SHRINKAGE` of what its better single
-    member leaves, and that improvement is significant (paired t >= :data:`MIN_T` over the
-    windows, or more than the whole noise floor), with the second effect's knobs inside their
-    search ranges (:func:`pinned_second`), and the same improvement over the pair with its
-    second effect switched off (:func:`idle_second`). When the pair still leaves a gap beyond
-    noise, the second effect must remove :data:`MOSTLY` of what the first leaves, the rule a
-    single effect meets against its base: one that leaves more of the rest than it removes is
-    at most part of the rest's cause, and the single effect is named with the gap it leaves
-    (seen on the plant's supply behind a drooping regulator, four seeds of four: a sensor lag
-    or a leak beside the supply took 32-34 % of what the supply left, and 1.5-5.4 % beyond
-    noise remained). A pair neither of whose members was fitted alone is not judged so."""
+    (:func:`pinned_single`), or when, switched off with the calibration as fitted beside it, it
+    loses less than :data:`MOSTLY` of its gain (:func:`idle_single`). A pair is named only when
+    its second effect pays for itself on held-out data: the pair removes at least
+    :data:`MIN_SHRINKAGE` of what its better single member leaves, and that improvement is
+    significant (paired t >= :data:`MIN_T` over the windows, or more than the whole noise
+    floor), with the second effect's knobs inside their search ranges (:func:`pinned_second`),
+    and the same improvement over the pair with its second effect switched off
+    (:func:`idle_second`). When the pair still leaves a gap beyond noise, the second effect must
+    remove :data:`MOSTLY` of what the first leaves, the rule a single effect meets against its
+    base: one that leaves more of the rest than it removes is at most part of the rest's cause,
+    and the single effect is named with the gap it leaves (seen on the plant's supply behind a
+    drooping regulator, four seeds of four: a sensor lag or a leak beside the supply took
+    32-34 % of what the supply left, and 1.5-5.4 % beyond noise remained). A pair neither of
+    whose members was fitted alone is not judged so."""
     why = left_out_rule(r, ranking, floor_windows)
     if why is None:
         return None
@@ -287,8 +313,9 @@ def left_out_rule(r: Ranked, ranking: Sequence[Ranked], floor_windows: np.ndarra
     if not r.explains:
         return None
     if len(r.fit.effects) == 1:
-        pinned = pinned_single(r)
-        return ("pinned", pinned) if pinned else None
+        if pinned := pinned_single(r):
+            return "pinned", pinned
+        return ("idle", list(r.fit.effects)) if idle_single(r) else None
     best = _better_single(r, ranking)
     if best is None:
         return None
@@ -363,10 +390,16 @@ def decide(ranking: Sequence[Ranked], base: Score, base_windows: np.ndarray,
         r.fit.holdout, r.fit.holdout_windows, floor_windows)]
     if not named:
         partial = explaining[0] if explaining else None
+        idle = next((r for r in ranking if r.explains and idle_single(r)), None)
+        idle_words = "" if idle is None else (
+            f"; {idle.fit.name} removes {idle.shrinkage:.0%} of it, but switched off, the "
+            f"calibration as fitted beside it, the fit leaves "
+            f"{idle.switched_off[idle.fit.effects[0]].holdout.gap:.2f} %: the improvement is "
+            f"that calibration's, not the effect's")
         if not gap_left:
             return Verdict(None, _clip(1.0 - best_shrink),
                            f"the held-out gap ({base.gap:.2f} %) is within what sensor noise "
-                           f"explains", partial=partial)
+                           f"explains{idle_words}", partial=partial)
         part = (f"{partial.fit.name} explains only {partial.shrinkage:.0%} of it"
                 if partial is not None else
                 f"no candidate removes {MIN_SHRINKAGE:.0%} of it with significance (best "
@@ -377,7 +410,7 @@ def decide(ranking: Sequence[Ranked], base: Score, base_windows: np.ndarray,
                      f"taken as standing in for a cause outside its form, not named")
         return Verdict(None, _clip(1.0 - best_shrink),
                        f"a held-out gap of {base.gap:.2f} % beyond noise remains and {part}: "
-                       f"its cause is not among the candidates", partial=partial,
+                       f"its cause is not among the candidates{idle_words}", partial=partial,
                        unexplained=True)
     win = named[0]
     rivals = [r for r in ranking if r is not win
