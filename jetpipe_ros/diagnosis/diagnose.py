@@ -9,10 +9,10 @@ which candidates the experiments could show at all; recalibrate the nominal para
 imitate on these records, and which pressure sensor the rig lacks would tell them apart
 (:mod:`collinearity`); fit every candidate alone and on top of the
 recalibrated model, refit the most promising jointly with the calibration, and score everything
-on the held-out data; try pairs when one effect leaves a significant gap, and score each pair
-again with each member switched off (:func:`fit.switched_off`); cross-check, with the
-roles of the data exchanged, what the short holdout cannot confirm alone; score each single
-effect that explains the gap again with it switched off; decide which of
+on the held-out data; try pairs when one effect leaves a significant gap; cross-check, with the
+roles of the data exchanged, what the short holdout cannot confirm alone; score each pair, and
+each single effect that explains the gap, again with each member switched off
+(:func:`fit.switched_off`); decide which of
 calibration and effect the data need (:func:`verdict.settle`); when no candidate explains the
 gap, place where it starts by experiments on the records (:mod:`placement`). The result is
 :class:`Diagnosis`: ``diagnosis.json``'s content and what its report draws. The fits run on the
@@ -532,17 +532,18 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
             on_cal = [min([f, *(s for s in singles if s.name == f.name)],
                           key=lambda x: x.cost) for f in on_cal] + pairs
             ranking = rank(on_cal, cal.holdout, cal.holdout_windows, dt)
-            progress("each pair with each member switched off, the rest as fitted")
-            for r in ranking:
-                if len(r.fit.effects) == 2:
-                    r.switched_off = {g: switched_off(prepared, nominal, r.fit, g)
-                                      for g in r.fit.effects}
         cross_check([cal_row, *ranking[:2], *alone_ranking[:2]], fitter, nominal, nom_all,
                     progress)
-        for r in ranking:  # a single effect must carry what it is credited with (verdict.py)
-            if len(r.fit.effects) == 1 and r.explains:
-                r.switched_off = {g: switched_off(prepared, nominal, r.fit, g)
-                                  for g in r.fit.effects}
+        # Each member of a pair, and a single effect that explains the gap, must carry what it
+        # is credited with (verdict.idle_second, verdict.idle_single): scored switched off.
+        carried = [r for r in ranking
+                   if len(r.fit.effects) == 2 or (len(r.fit.effects) == 1 and r.explains)]
+        if carried:
+            progress("each pair's members and each effect that explains, switched off, the "
+                     "rest as fitted")
+        for r in carried:
+            r.switched_off = {g: switched_off(prepared, nominal, r.fit, g)
+                              for g in r.fit.effects}
         on_cal_verdict, ranking = second_fold(
             decide(ranking, cal.holdout, cal.holdout_windows, floor), ranking, fitter, nominal,
             (cal.holdout, cal.holdout_windows), floor, progress)
