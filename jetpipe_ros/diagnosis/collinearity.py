@@ -199,7 +199,7 @@ def _as_logged_with(prepared: Prepared, params: ModelParams, added: Sequence[str
         if not new or rec.regulated:  # a regulated test's pressures are the regulators'
             records.append(rec)
             continue
-        replay = predict(params, rec, prepared.dt, "chambers")
+        replay = predict(params, rec, prepared.dt, "chambers", scale=prepared.scale)
         logged = {s: replay.signal(s) for s in new}
         for s, x in logged.items():
             read[s].append(x)

@@ -206,7 +206,7 @@ def subsystem_gaps(prepared: Prepared, params: ModelParams, role: str | None = N
     for rec in prepared.records:
         if rec.regulated or not rec.measured("p1"):
             continue
-        pred = predict(params, rec, prepared.dt, "chambers")
+        pred = predict(params, rec, prepared.dt, "chambers", scale=prepared.scale)
         steady = np.abs(np.gradient(rec.p1, prepared.dt)) < 2e4
         steady[: rec.t.size // 10] = False
         steady &= rec.train | rec.holdout

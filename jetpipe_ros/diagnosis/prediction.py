@@ -27,11 +27,12 @@ measured pressures (``mode="mechanics"``), so each can be judged apart.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
-from jetpipe_ros.diagnosis.data import MIN_HOLDOUT_S, MIN_TRAIN_S, Prepared, Record
+from jetpipe_ros.diagnosis.data import MIN_HOLDOUT_S, MIN_SCALE, MIN_TRAIN_S, Prepared, Record
 from jetpipe_ros.model import Actuator, ModelParams
 from jetpipe_ros.model import kernel
 from jetpipe_ros.model.flow import P_ATM, P_SUPPLY_NOMINAL
@@ -40,6 +41,10 @@ from jetpipe_ros.model.flow import P_ATM, P_SUPPLY_NOMINAL
 HORIZON = 1.0
 WARMUP = 0.05
 MODES = ("full", "chambers", "mechanics")
+#: Where the valve hysteresis's plays may stand when a record starts, as
+#: :meth:`~jetpipe_ros.model.Actuator.preload_hysteresis` places them: after the command came
+#: down to the record's start, midway, after it came up.
+PLAY_STARTS = (1.0, 0.0, -1.0)
 #: Where a chamber whose pressure no sensor measured may be when a record starts [Pa, absolute]:
 #: anywhere between atmosphere and the supply of the valve's identification.
 START_RANGE = (P_ATM, P_SUPPLY_NOMINAL)
@@ -101,12 +106,52 @@ def initial_state(params: ModelParams, y: np.ndarray, p1: np.ndarray,
 
 
 def predict(params: ModelParams, rec: Record, dt: float, mode: str = "full",
-            horizon: float = HORIZON, warmup: float = WARMUP) -> Prediction:
-    """Predict experiment ``rec`` with ``params`` (noise-free) at sample time ``dt``."""
+            horizon: float = HORIZON, warmup: float = WARMUP,
+            scale: Mapping[str, float] | None = None) -> Prediction:
+    """Predict experiment ``rec`` with ``params`` (noise-free) at sample time ``dt``.
+
+    With the valve's hysteresis on, where its plays stand when the record starts is set by
+    commands the record does not show, and it matters for the whole record where the command
+    never sweeps past the widest play: a closed-loop record near the valve's null keeps it
+    throughout (a play of 0.58 V weighing 6 % of a three-play loop, started from the middle
+    where the hardware had it at one side, missed slow closed-loop motion by 2.9 % of its
+    spread; from that side by 0.3 %). So the record is predicted from each start of
+    :data:`PLAY_STARTS` and the prediction closest to the record kept, as its first samples set
+    the pressures and position the model starts from: each measured signal's mean square error
+    over the predicted samples, over its ``scale`` [m or Pa] squared (default: its spread in
+    the record, at least :data:`data.MIN_SCALE`)."""
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     if rec.regulated:
         mode = "mechanics"
+    hysteresis = (params["effects.valve_hysteresis.enabled"]
+                  and params["effects.valve_hysteresis.half_width"] > 0.0)
+    if mode == "mechanics" or not hysteresis:
+        return _predict(params, rec, dt, mode, horizon, warmup, 0.0)
+    preds = [_predict(params, rec, dt, mode, horizon, warmup, side) for side in PLAY_STARTS]
+    return min(preds, key=lambda pred: misfit(pred, rec, scale))
+
+
+def misfit(pred: Prediction, rec: Record, scale: Mapping[str, float] | None = None) -> float:
+    """Sum over the record's scored signals of the mean square error of ``pred`` over the
+    predicted samples where the record measured, over ``scale`` [m or Pa] squared (default:
+    the signal's spread in the record, at least :data:`data.MIN_SCALE`)."""
+    total = 0.0
+    for s in rec.signals():
+        measured = rec.signal(s)
+        mask = pred.free & np.isfinite(measured)
+        if not mask.any():
+            continue
+        norm = scale[s] if scale is not None else max(float(np.std(measured[mask])),
+                                                      MIN_SCALE[s])
+        total += float(np.mean((pred.signal(s)[mask] - measured[mask]) ** 2)) / norm ** 2
+    return total
+
+
+def _predict(params: ModelParams, rec: Record, dt: float, mode: str, horizon: float,
+             warmup: float, side: float) -> Prediction:
+    """:func:`predict` from the hysteresis's plays at ``side``
+    (:meth:`~jetpipe_ros.model.Actuator.preload_hysteresis`)."""
     y = rec.smooth["y"]
     p1, p2 = (sensor_inverse(params, rec.smooth[s], rec.t, i)
               for i, s in ((1, "p1"), (2, "p2")))
@@ -117,10 +162,11 @@ def predict(params: ModelParams, rec: Record, dt: float, mode: str = "full",
             and rec.measured("y"):
         # The unmeasured pressures, replayed from the measured motion: what restarts them.
         replayed = _run(params.at_sample_time(dt).with_values(changes), rec,
-                        _motion_drive(rec, y, dt))
+                        _motion_drive(rec, y, dt), side)
         p1 = p1 if rec.measured("p1") else replayed[:, kernel.OUT_P1]
         p2 = p2 if rec.measured("p2") else replayed[:, kernel.OUT_P2]
     act = Actuator(params.at_sample_time(dt).with_values(changes))
+    act.preload_hysteresis(side)
     drive = np.full((n - 1, kernel.N_DRIVE), np.nan)
     held = np.zeros(n, dtype=bool)
     if mode == "chambers" and not rec.locked:
@@ -233,10 +279,13 @@ def _motion_drive(rec: Record, y: np.ndarray, dt: float) -> np.ndarray:
     return drive
 
 
-def _run(params: ModelParams, rec: Record, drive: np.ndarray) -> np.ndarray:
+def _run(params: ModelParams, rec: Record, drive: np.ndarray, side: float = 0.0) -> np.ndarray:
     """The model ``params`` (at the record's sample time) over the record's command and load
-    with ``drive``: the kernel's outputs, one row per sample."""
-    return _run_actuator(Actuator(params), rec, drive)
+    with ``drive``, the hysteresis's plays started at ``side``: the kernel's outputs, one row
+    per sample."""
+    act = Actuator(params)
+    act.preload_hysteresis(side)
+    return _run_actuator(act, rec, drive)
 
 
 def _run_actuator(act: Actuator, rec: Record, drive: np.ndarray) -> np.ndarray:

@@ -87,7 +87,7 @@ def effective_samples(s: Score, dt: float) -> float:
 def predict_all(params: ModelParams, prepared: Prepared, role: str | None,
                 mode: str = "full") -> list[Prediction | None]:
     """Predictions of the records having ``role`` samples (all records for None), else None."""
-    return [predict(params, r, prepared.dt, mode)
+    return [predict(params, r, prepared.dt, mode, scale=prepared.scale)
             if role is None or getattr(r, role).any() else None for r in prepared.records]
 
 

@@ -205,6 +205,17 @@ class Actuator:
         self.state = x
         self.ring = np.zeros(c.delay_samples + 2)  # the current command and the delay's two
 
+    def preload_hysteresis(self, side: float) -> None:
+        """Place the valve hysteresis's plays (the ``valve_hysteresis`` effect) as a valve at
+        rest at 0 V holds them after its command came to 0 V from above (``side`` = +1: each
+        play's output at +its threshold [V]) or from below (-1), or anywhere between (0: at 0 V,
+        the state :meth:`reset` leaves). A record that starts after commands it does not show
+        starts anywhere in that range. Nothing changes without the hysteresis."""
+        if not -1.0 <= side <= 1.0:
+            raise ValueError(f"side must lie in [-1, 1], got {side}")
+        r = self.constants.hysteresis
+        self.state[kernel.PLAY:kernel.PLAY + r.shape[0]] = side * r
+
     def reconfigure(self, changes: Mapping[str, Any]) -> None:
         """Apply parameter ``changes`` in place, keeping the state, as a test rig's switch does.
 
