@@ -6,9 +6,10 @@ the batch simulator on a 60 s rich command (real-time factor = simulated time / 
 ``Actuator.step`` (the node's path), and one evaluation of a diagnosis fit's objective:
 ``predict_all`` over the training experiments of the default campaign's dataset (simulated with
 sensor noise), with where its time goes (the kernel, the parameters compiled for it, the rest of
-the prediction in Python). Times are the thread's CPU time (``time.thread_time``), which on a
-shared machine leaves out the time other processes hold the core and on an idle core equals
-wall time. Medians of repeats in one run, single core; compare rows, not machines.
+the prediction in Python), and the same with the valve hysteresis on (each record then predicted
+from each start its plays may have). Times are the thread's CPU time (``time.thread_time``),
+which on a shared machine leaves out the time other processes hold the core and on an idle core
+equals wall time. Medians of repeats in one run, single core; compare rows, not machines.
 ``--baseline REV`` also runs the same measurements on the package as it was at git revision REV
 (extracted into a temporary directory, same dataset), each in a fresh single-threaded subprocess,
 so before and after come from one run on one machine; ``--rounds N`` alternates the two N times and
@@ -140,6 +141,15 @@ def evaluation(dataset: Path, repeats: int) -> dict:
     ModelParams.with_values = timed("params", ModelParams.with_values)
     params = ModelParams()
     predict_all(params, prepared, "train")  # compile and fill caches outside the timing
+    # With the valve hysteresis on, each record is predicted from each start its plays may
+    # have (diagnosis.prediction.PLAY_STARTS, since 2026-12-05): what a fit of it pays.
+    hysteresis = params.with_effect("valve_hysteresis", half_width=0.25, elements=8, spread=1.0)
+    predict_all(hysteresis, prepared, "train")
+    hysteresis_times = []
+    for _ in range(repeats):
+        start = time.thread_time()
+        predict_all(hysteresis, prepared, "train")
+        hysteresis_times.append(time.thread_time() - start)
     rows = []
     for _ in range(repeats):
         spent.update(dict.fromkeys(spent, 0.0))
@@ -152,7 +162,8 @@ def evaluation(dataset: Path, repeats: int) -> dict:
                      "total": total})
     train = [r for r in prepared.records if r.train.any()]
     return {"experiments": len(train), "train_seconds": sum(r.t.size for r in train) * prepared.dt,
-            "evaluation": {key: statistics.median(r[key] for r in rows) for key in rows[0]}}
+            "evaluation": {key: statistics.median(r[key] for r in rows) for key in rows[0]},
+            "evaluation_hysteresis": statistics.median(hysteresis_times)}
 
 
 def in_subprocess(package_root: Path, args: argparse.Namespace, dataset: Path) -> dict:
@@ -229,6 +240,8 @@ def table(now: dict, before: dict | None, rev: str | None) -> str:
         cells = [f"{f['evaluation'][key] * 1e3:.1f} ms "
                  f"({100 * f['evaluation'][key] / f['evaluation']['total']:.0f} %)" for f in runs]
         lines.append(f"| of which {label} | {' | '.join(cells)} |" + (" |" if before else ""))
+    lines.append(row("CPU time with the valve hysteresis on (8 plays; median)",
+                     lambda f: f["evaluation_hysteresis"] * 1e3, lambda x: f"{x:.1f} ms"))
     return "\n".join(lines)
 
 

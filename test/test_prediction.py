@@ -89,8 +89,8 @@ def test_a_record_starts_from_the_hysteresis_state_its_history_left(tmp_path):
     """A valve with a 0.3 V play whose command came to 0 V from 1 V (or from -1 V) before the
     record starts holds its play at +0.3 V (-0.3 V); a 0.2 V sine never moves it, so the whole
     record depends on that unseen history. Replayed from the middle (as before 2026-12-05) the
-    prediction missed by 16-20 kPa RMS; the start chosen among the three the record may have (from above, midway,
-    from below) replays it within the pressure sensor's noise (500 Pa)."""
+    prediction missed by 16-20 kPa RMS; the start chosen among the three the record may have
+    (from above, midway, from below) replays it within the pressure sensor's noise (500 Pa)."""
     dt = 0.001
     params = ModelParams().with_values({"mechanics.locked": True, "sensors.noise": False}) \
         .with_effect("valve_hysteresis", half_width=0.3, elements=1)
