@@ -378,7 +378,7 @@ def uncertainty(prepared: Prepared, nominal: ModelParams, fitted: Fit,
     r0 = obj.residuals(fitted.z)
     jac = jacobian(obj.residuals, fitted.z, step)
     info = jac.T @ jac
-    cov = float(r0 @ r0) / effective_samples(fitted.train, prepared.dt) * np.linalg.pinv(info)
+    cov = float(r0 @ r0) / fitted.evidence * np.linalg.pinv(info)
     out: dict[str, dict[str, float | None]] = {}
     knobs = [(g.name, k) for g in groups for k in g.knobs]
     for i, (name, k) in enumerate(knobs):
