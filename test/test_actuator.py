@@ -221,3 +221,19 @@ def test_every_run_uses_the_one_compiled_kernel():
     act.run(frozen, np.broadcast_to(np.array([5.0]), (50,)), drive)
     assert len(kernel.advance.signatures) == 1
     assert not any(arg.mutable is False for arg in kernel.advance.signatures[0][1:])
+
+
+def test_preloaded_hysteresis_shifts_what_the_valve_sees_at_rest_by_its_half_width():
+    """A single 0.3 V play preloaded from above holds the valve at +0.3 V (times the jet pipe's
+    gain) under a 0 V command, from below at -0.3 V, midway at 0 V: u_eq, the voltage the flow map
+    sees, says so once the valve chain has settled; a side outside [-1, 1] is refused."""
+    params = ModelParams().with_values({"mechanics.locked": True}) \
+        .with_effect("valve_hysteresis", half_width=0.3, elements=1)
+    gain = params["valve.gain"]
+    for side in (1.0, 0.0, -1.0):
+        act = Actuator(params)
+        act.preload_hysteresis(side)
+        out = act.run(np.zeros(100))
+        assert out[-1, kernel.OUT_UEQ] == pytest.approx(0.3 * side * gain, abs=1e-9)
+    with pytest.raises(ValueError, match="side"):
+        Actuator(params).preload_hysteresis(1.5)
