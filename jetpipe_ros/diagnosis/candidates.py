@@ -20,9 +20,10 @@ grows as the pressure difference to a fitted power, each across the piston and t
 supply constant, or a line (volume and conductance) fed from a set pressure and drained by the flow
 the valve draws; dynamic friction as LuGre bristles or as Maxwell-slip elements (what real seals
 show, docs/friction.md), the elements' spread a knob of its extent. Where forms blend continuously a
-knob spans them: the hysteresis is eight play operators whose thresholds spread from one sharp loop
-(spread 0) to a rounded Prandtl-Ishlinskii loop (spread 1); the power-law leak's exponent runs from
-a turbulent, orifice-like leak (0.5) to a laminar one (1).
+knob spans them: the hysteresis is eight play operators whose thresholds spread from one sharp
+loop (spread 0) to a rounded Prandtl-Ishlinskii loop (spread 1), the narrowest play weighing from
+an equal share (sharp_share 0) to nearly all of the loop, its wider plays a thin tail; the
+power-law leak's exponent runs from a turbulent, orifice-like leak (0.5) to a laminar one (1).
 """
 
 from __future__ import annotations
@@ -248,8 +249,9 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               {"port_volume": 4e-5, "port_conductance": 5e-9, "port_index": 0.5},
               {"form": "port"}, carries=("dead_volume_1", "dead_volume_2")),
     Candidate("valve_hysteresis", (Knob("half_width", 0.0, 0.6, 0.0),
-                                   Knob("spread", 0.0, 1.0, 0.0, tries=(1.0,), extent=True)),
-              {"half_width": 0.25, "spread": 0.0}, {"elements": 8}),
+                                   Knob("spread", 0.0, 1.0, 0.0, tries=(1.0,), extent=True),
+                                   Knob("sharp_share", 0.0, 0.95, 0.0, extent=True)),
+              {"half_width": 0.25, "spread": 0.0, "sharp_share": 0.0}, {"elements": 8}),
     Candidate("supply_pressure", (Knob("pressure", 4e5, 1.1e6, 1e6), REFERENCE_KNOB),
               {"pressure": 8e5, "reference": SONIC_REFERENCE}, {"form": "constant"}),
     Candidate("supply_pressure:line", (Knob("line_conductance", 3e-9, 1e-5, 1e-5, log=True),

@@ -49,6 +49,19 @@ def flow_map(p: Mapping[str, Any]) -> np.ndarray:
     return np.concatenate([coef, table]) if np.any(table) else coef
 
 
+def _plays(half_width: float, n: int, spread: float,
+           sharp_share: float) -> tuple[np.ndarray, np.ndarray]:
+    """The valve hysteresis's play thresholds [V] and weights (summing to 1): ``n`` thresholds
+    evenly in r (1 +- ``spread``), the narrowest weighing ``sharp_share`` more than an equal
+    share, r such that the weighted mean threshold is ``half_width``. One play: ``half_width``."""
+    offsets = (2.0 * np.arange(1, n + 1) - 1.0) / max(n, 1) - 1.0  # in (-1, 1), mean 0
+    weights = np.full(n, (1.0 - sharp_share) / max(n, 1))
+    if n:
+        weights[0] += sharp_share
+    shape = 1.0 + spread * offsets
+    return half_width * shape / float(weights @ shape), weights
+
+
 def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
     """Compile validated parameters (nominal values plus enabled effects) for the kernel."""
 
@@ -83,9 +96,9 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
     noise = p["sensors.noise"]
     half_width = effect("valve_hysteresis", "half_width", 0.0)
     n_play = p["effects.valve_hysteresis.elements"] if half_width > 0.0 else 0
-    # Thresholds evenly in half_width * (1 +- spread), mean half_width; one element: half_width.
-    offsets = (2.0 * np.arange(1, n_play + 1) - 1.0) / max(n_play, 1) - 1.0  # in (-1, 1)
-    hysteresis = half_width * (1.0 + p["effects.valve_hysteresis.spread"] * offsets)
+    hysteresis, hysteresis_weight = _plays(half_width, n_play,
+                                           p["effects.valve_hysteresis.spread"],
+                                           p["effects.valve_hysteresis.sharp_share"])
     thermal = p["effects.thermal.enabled"]
     heat_transfer = thermal and p["effects.thermal.form"] == "heat_transfer"
     leakage = p["effects.leakage.enabled"]
@@ -99,7 +112,7 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
         dt=dt, substeps=substeps, u_limit=p["valve.command_limit"],
         valve_a=valve.a, valve_g=valve.g, valve_c=valve.c, valve_h=valve.h,
         delay_samples=valve.delay_samples,
-        hysteresis=hysteresis,
+        hysteresis=hysteresis, hysteresis_weight=hysteresis_weight,
         flow_coef=flow_map(p),
         flow_law=FlowLaw(reference=effect("supply_pressure", "reference", P_ATM),
                          gain_charge=p["flow.gain_charge"],

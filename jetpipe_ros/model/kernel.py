@@ -103,6 +103,7 @@ class Constants(NamedTuple):
     valve_h: np.ndarray
     delay_samples: int  #: whole samples of the valve's transport delay
     hysteresis: np.ndarray  #: play thresholds [V], one per element; empty = off
+    hysteresis_weight: np.ndarray  #: the plays' weights in the loop, summing to 1
     flow_coef: np.ndarray  #: the flow map: Eq. 8's coefficients, then its correction table
     flow_law: FlowLaw  #: how the map follows the supply, its gains per direction (flow.py)
     valve_gain: float  #: u_eq per u_f (jet-pipe deflection per volt relative to Eq. 5)
@@ -255,13 +256,13 @@ def _valve_pass(c: Constants, x: np.ndarray, ring: np.ndarray, u: np.ndarray,
             for j in range(VALVE_ORDER):
                 u_f += vc[s, j] * state[j]
             if n_play:
-                # Prandtl-Ishlinskii: the mean of play operators (one element = a single play).
+                # Prandtl-Ishlinskii: a weighted sum of play operators (one element = a play).
                 acc = 0.0
                 for i in range(n_play):
                     r = c.hysteresis[i]
                     play[i] = min(max(play[i], u_f - r), u_f + r)
-                    acc += play[i]
-                u_f = acc / n_play
+                    acc += c.hysteresis_weight[i] * play[i]
+                u_f = acc
             u_eq[i_out] = min(max(c.valve_gain * u_f, U_EQ_MIN), U_EQ_MAX)
             i_out += 1
         for i in range(VALVE_ORDER):

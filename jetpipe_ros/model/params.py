@@ -226,13 +226,17 @@ _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
            "the flow near equal pressures", "", 0.5, 1.0),
     ],
     "valve_hysteresis": [
-        _p("half_width", 0.25, "Hysteresis loop half-width (mean play threshold)", "V",
-           0.0, 2.0),
+        _p("half_width", 0.25, "Hysteresis loop half-width (the plays' weighted mean "
+           "threshold)", "V", 0.0, 2.0),
         _p("elements", 1, "Play operators in parallel (1 = one sharp loop; more = a rounded "
-           "Prandtl-Ishlinskii loop, thresholds spread evenly around half_width)", "", 1, 8),
-        _p("spread", 1.0, "Spread of the play thresholds as a fraction of half_width: they lie "
-           "evenly in half_width * (1 +- spread) (0 = all equal, one sharp loop; 1 = from 0 "
-           "to twice half_width)", "", 0.0, 1.0),
+           "Prandtl-Ishlinskii loop, thresholds spread evenly around their mean)", "", 1, 8),
+        _p("spread", 1.0, "Spread of the play thresholds as a fraction of their mean r: they "
+           "lie evenly in r (1 +- spread), r = half_width with plays of equal weight (0 = all "
+           "equal, one sharp loop; 1 = from 0 to twice r)", "", 0.0, 1.0),
+        _p("sharp_share", 0.0, "Share of the loop held by its narrowest play beyond an equal "
+           "share (elements > 1): 0 = plays of equal weight; towards 1 a sharp loop at the "
+           "narrowest threshold whose corners the wider plays round off, a thin tail of the "
+           "loop; half_width stays the weighted mean threshold", "", 0.0, 0.95),
     ],
     "supply_pressure": [
         _p("form", "constant", "Supply seen by the valve: constant, or a line volume fed "
