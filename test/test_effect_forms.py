@@ -99,18 +99,17 @@ def test_a_sharp_share_weights_the_narrowest_play_and_keeps_the_mean_width():
     shape 0.55, so thresholds w / 0.55 * shape = 0.1136, 0.3409, 0.5682, 0.7955 V for w = 0.25 V.
     The loop is still 2 w wide at 0 V (each play's output crosses it at +-its threshold). After
     the reversal at 2 V and 0.4 V down only the narrowest play follows, by 0.4 - 2 * 0.1136 V at
-    weight 0.7: 0.1209 V; with equal weights (share 0) its thresholds are w / 4 * shape and the
-    two narrowest follow: (0.4 - 0.125 + 0.4 - 0.375) / 4 = 0.075 V."""
+    weight 0.7: 0.1209 V (with equal weights the two narrowest, 0.075 V: the test above)."""
     u = np.concatenate([np.linspace(-2, 2, 2000), np.linspace(2, -2, 2000)])
     w = 0.25
     plain = simulate(LOCKED, u).u_eq
     lag_width = plain[3000] - plain[1000]
     k = 2000 + 200 + 10
-    for share, drop in ((0.6, 0.7 * (0.4 - 2 * w / 0.55 / 4)), (0.0, 0.075)):
-        loop = simulate(LOCKED.with_effect("valve_hysteresis", half_width=w, elements=4,
-                                           spread=1.0, sharp_share=share), u).u_eq
-        assert loop[3000] - loop[1000] - lag_width == pytest.approx(2 * w, abs=0.005)
-        assert loop[1990:2030].max() - loop[k] == pytest.approx(drop, abs=0.005)
+    loop = simulate(LOCKED.with_effect("valve_hysteresis", half_width=w, elements=4,
+                                       spread=1.0, sharp_share=0.6), u).u_eq
+    assert loop[3000] - loop[1000] - lag_width == pytest.approx(2 * w, abs=0.005)
+    assert loop[1990:2030].max() - loop[k] == pytest.approx(0.7 * (0.4 - 2 * w / 0.55 / 4),
+                                                            abs=0.005)
 
 
 def test_regulated_pressures_give_the_viscous_steady_velocity_of_eq19():
