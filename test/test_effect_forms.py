@@ -93,23 +93,31 @@ def test_multi_element_hysteresis_keeps_the_width_but_rounds_the_corner():
     np.testing.assert_allclose(sharp, single, atol=1e-12)
 
 
-def test_a_sharp_share_weights_the_narrowest_play_and_keeps_the_mean_width():
-    """Weighted Prandtl-Ishlinskii loop: four plays spread 1 (shape 1/4, 3/4, 5/4, 7/4), the
-    narrowest weighing 0.6 more than an equal share: weights 0.7, 0.1, 0.1, 0.1, weighted mean
-    shape 0.55, so thresholds w / 0.55 * shape = 0.1136, 0.3409, 0.5682, 0.7955 V for w = 0.25 V.
-    The loop is still 2 w wide at 0 V (each play's output crosses it at +-its threshold). After
-    the reversal at 2 V and 0.4 V down only the narrowest play follows, by 0.4 - 2 * 0.1136 V at
-    weight 0.7: 0.1209 V (with equal weights the two narrowest, 0.075 V: the test above)."""
+@pytest.mark.parametrize("share, drop", [
+    (0.6, 0.7 * (0.4 - 2 * 0.25 / 0.55 / 4)),
+    (-0.6, 0.1 * (0.4 - 2 * 0.25 / 1.45 / 4) + 0.1 * (0.4 - 2 * 0.25 / 1.45 * 3 / 4)),
+])
+def test_a_sharp_share_weights_an_end_play_and_keeps_the_mean_width(share, drop):
+    """Weighted Prandtl-Ishlinskii loop: four plays spread 1 (shape 1/4, 3/4, 5/4, 7/4), one end
+    play weighing 0.6 more than an equal share. The loop is still 2 w wide at 0 V (each play's
+    output crosses it at +-its threshold); what follows a reversal at 2 V, 0.4 V down, tells
+    which play weighs what (equal weights: the two narrowest follow, 0.075 V, the test above).
+
+    - share 0.6, the narrowest: weights 0.7, 0.1, 0.1, 0.1, weighted mean shape 0.55, thresholds
+      w / 0.55 * shape = 0.1136, 0.3409, 0.5682, 0.7955 V for w = 0.25 V; only the narrowest
+      follows, by 0.4 - 2 * 0.1136 V at weight 0.7: 0.1209 V.
+    - share -0.6, the widest: weights 0.1, 0.1, 0.1, 0.7, weighted mean shape 1.45, thresholds
+      0.0431, 0.1293, 0.2155, 0.3017 V; the two narrowest follow, by 0.4 - 0.0862 and
+      0.4 - 0.2586 V at weight 0.1 each: 0.0455 V."""
     u = np.concatenate([np.linspace(-2, 2, 2000), np.linspace(2, -2, 2000)])
     w = 0.25
     plain = simulate(LOCKED, u).u_eq
     lag_width = plain[3000] - plain[1000]
     k = 2000 + 200 + 10
     loop = simulate(LOCKED.with_effect("valve_hysteresis", half_width=w, elements=4,
-                                       spread=1.0, sharp_share=0.6), u).u_eq
+                                       spread=1.0, sharp_share=share), u).u_eq
     assert loop[3000] - loop[1000] - lag_width == pytest.approx(2 * w, abs=0.005)
-    assert loop[1990:2030].max() - loop[k] == pytest.approx(0.7 * (0.4 - 2 * w / 0.55 / 4),
-                                                            abs=0.005)
+    assert loop[1990:2030].max() - loop[k] == pytest.approx(drop, abs=0.005)
 
 
 def test_regulated_pressures_give_the_viscous_steady_velocity_of_eq19():

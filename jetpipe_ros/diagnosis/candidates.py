@@ -21,9 +21,10 @@ supply constant, or a line (volume and conductance) fed from a set pressure and 
 the valve draws; dynamic friction as LuGre bristles or as Maxwell-slip elements (what real seals
 show, docs/friction.md), the elements' spread a knob of its extent. Where forms blend continuously a
 knob spans them: the hysteresis is eight play operators whose thresholds spread from one sharp
-loop (spread 0) to a rounded Prandtl-Ishlinskii loop (spread 1), the narrowest play weighing from
-an equal share (sharp_share 0) to nearly all of the loop, its wider plays a thin tail; the
-power-law leak's exponent runs from a turbulent, orifice-like leak (0.5) to a laminar one (1).
+loop (spread 0) to a rounded Prandtl-Ishlinskii loop (spread 1), one end play weighing from an
+equal share (sharp_share 0) to nearly all of the loop, the narrowest (towards 1) or the widest
+(towards -1), the other plays a thin tail; the power-law leak's exponent runs from a turbulent,
+orifice-like leak (0.5) to a laminar one (1).
 """
 
 from __future__ import annotations
@@ -250,7 +251,7 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               {"form": "port"}, carries=("dead_volume_1", "dead_volume_2")),
     Candidate("valve_hysteresis", (Knob("half_width", 0.0, 0.6, 0.0),
                                    Knob("spread", 0.0, 1.0, 0.0, tries=(1.0,), extent=True),
-                                   Knob("sharp_share", 0.0, 0.95, 0.0, extent=True)),
+                                   Knob("sharp_share", -0.95, 0.95, 0.0, extent=True)),
               {"half_width": 0.25, "spread": 0.0, "sharp_share": 0.0}, {"elements": 8}),
     Candidate("supply_pressure", (Knob("pressure", 4e5, 1.1e6, 1e6), REFERENCE_KNOB),
               {"pressure": 8e5, "reference": SONIC_REFERENCE}, {"form": "constant"}),

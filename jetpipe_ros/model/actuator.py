@@ -52,12 +52,13 @@ def flow_map(p: Mapping[str, Any]) -> np.ndarray:
 def _plays(half_width: float, n: int, spread: float,
            sharp_share: float) -> tuple[np.ndarray, np.ndarray]:
     """The valve hysteresis's play thresholds [V] and weights (summing to 1): ``n`` thresholds
-    evenly in r (1 +- ``spread``), the narrowest weighing ``sharp_share`` more than an equal
-    share, r such that the weighted mean threshold is ``half_width``. One play: ``half_width``."""
+    evenly in r (1 +- ``spread``), the narrowest (``sharp_share`` > 0) or the widest (< 0)
+    weighing ``|sharp_share|`` more than an equal share, r such that the weighted mean threshold
+    is ``half_width``. One play: ``half_width``."""
     offsets = (2.0 * np.arange(1, n + 1) - 1.0) / max(n, 1) - 1.0  # in (-1, 1), mean 0
-    weights = np.full(n, (1.0 - sharp_share) / max(n, 1))
+    weights = np.full(n, (1.0 - abs(sharp_share)) / max(n, 1))
     if n:
-        weights[0] += sharp_share
+        weights[0 if sharp_share >= 0.0 else -1] += abs(sharp_share)
     shape = 1.0 + spread * offsets
     return half_width * shape / float(weights @ shape), weights
 

@@ -233,10 +233,12 @@ _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
         _p("spread", 1.0, "Spread of the play thresholds as a fraction of their mean r: they "
            "lie evenly in r (1 +- spread), r = half_width with plays of equal weight (0 = all "
            "equal, one sharp loop; 1 = from 0 to twice r)", "", 0.0, 1.0),
-        _p("sharp_share", 0.0, "Share of the loop held by its narrowest play beyond an equal "
-           "share (elements > 1): 0 = plays of equal weight; towards 1 a sharp loop at the "
-           "narrowest threshold whose corners the wider plays round off, a thin tail of the "
-           "loop; half_width stays the weighted mean threshold", "", 0.0, 0.95),
+        _p("sharp_share", 0.0, "Share of the loop held by one end play beyond an equal share "
+           "(elements > 1), the narrowest if positive, the widest if negative: 0 = plays of "
+           "equal weight; towards 1 a sharp loop at the narrowest threshold whose corners the "
+           "wider plays round off; towards -1 a sharp loop at the widest threshold, the "
+           "narrower plays a soft start of each branch; half_width stays the weighted mean "
+           "threshold", "", -0.95, 0.95),
     ],
     "supply_pressure": [
         _p("form", "constant", "Supply seen by the valve: constant, or a line volume fed "
