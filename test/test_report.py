@@ -105,3 +105,25 @@ def test_a_none_says_no_effect_once_and_what_it_cannot_rule_out_below():
                          "0.17 %.")
     assert text.lower().count("no unmodelled effect") == 1
     assert text.count("valve_delay") == 2  # "Not ruled out" and the sensor that would tell
+
+
+def test_a_named_hysteresis_loop_is_told_as_its_plays_not_its_knobs():
+    """spread 0.5, sharp_share -0.6, half-width 0.25 V, eight plays (worked by hand): offsets
+    +-0.125..0.875, shapes 0.5625..1.4375 (sum 8); weights 0.05 each and 0.65 for the widest, so
+    weights . shapes = 0.4 + 0.6 x 1.4375 = 1.2625 and r = 0.25 shape / 1.2625: 0.1114 V to
+    0.2847 V, the next widest 0.2599 V. A pair's hysteresis is told the same way."""
+    from jetpipe_ros.workflows.report import loop_words
+    values = {"half_width": 0.25, "spread": 0.5, "sharp_share": -0.6}
+    text = loop_words({"effects": ["valve_hysteresis"], "params": values})
+    assert "8 play operators with thresholds from 0.111 to 0.285 V (weighted mean 0.250 V" \
+        in text
+    assert "its widest play (0.285 V) holds 65 % of the loop, the other 7 (0.111 to 0.260 V) " \
+           "5 % each" in text
+    paired = loop_words({"effects": ["valve_lag", "valve_hysteresis"],
+                         "params": {"valve_lag": {"corner_frequency": 20.0},
+                                    "valve_hysteresis": {**values, "sharp_share": 0.6}}})
+    assert "its narrowest play (0." in paired and "holds 65 % of the loop" in paired
+    assert loop_words({"effects": ["valve_hysteresis"],
+                       "params": {**values, "spread": 0.0}}) == \
+        "The hysteresis loop found: 8 play operators at one threshold, 0.250 V: one sharp loop."
+    assert loop_words({"effects": ["valve_lag"], "params": {"corner_frequency": 20.0}}) is None

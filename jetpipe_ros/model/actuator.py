@@ -63,6 +63,16 @@ def _plays(half_width: float, n: int, spread: float,
     return half_width * shape / float(weights @ shape), weights
 
 
+def hysteresis_plays(p: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """The play thresholds [V] and weights (summing to 1) of the valve hysteresis in validated
+    parameters ``p``, the loop the kernel runs; both empty with the effect off."""
+    on = p["effects.valve_hysteresis.enabled"]
+    half_width = p["effects.valve_hysteresis.half_width"] if on else 0.0
+    n = p["effects.valve_hysteresis.elements"] if half_width > 0.0 else 0
+    return _plays(half_width, n, p["effects.valve_hysteresis.spread"],
+                  p["effects.valve_hysteresis.sharp_share"])
+
+
 def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
     """Compile validated parameters (nominal values plus enabled effects) for the kernel."""
 
@@ -95,11 +105,7 @@ def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
                         ("breakaway", "stribeck_velocity", "viscous", "coulomb")]
                        for phase in ("entry", "exit")], dtype=float)
     noise = p["sensors.noise"]
-    half_width = effect("valve_hysteresis", "half_width", 0.0)
-    n_play = p["effects.valve_hysteresis.elements"] if half_width > 0.0 else 0
-    hysteresis, hysteresis_weight = _plays(half_width, n_play,
-                                           p["effects.valve_hysteresis.spread"],
-                                           p["effects.valve_hysteresis.sharp_share"])
+    hysteresis, hysteresis_weight = hysteresis_plays(p)
     thermal = p["effects.thermal.enabled"]
     heat_transfer = thermal and p["effects.thermal.form"] == "heat_transfer"
     leakage = p["effects.leakage.enabled"]

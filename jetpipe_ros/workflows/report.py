@@ -18,6 +18,7 @@ import yaml
 
 from jetpipe_ros.dataset import grouped_notes
 from jetpipe_ros.diagnosis.calibration import NAME as CALIBRATION_GROUP
+from jetpipe_ros.diagnosis.candidates import CANDIDATES
 from jetpipe_ros.diagnosis.collinearity import ADDED, imitated_effects, telling
 from jetpipe_ros.diagnosis.data import Prepared, Record
 from jetpipe_ros.diagnosis.detection import unseen
@@ -26,6 +27,8 @@ from jetpipe_ros.diagnosis.nuisance import words as nuisance_words
 from jetpipe_ros.diagnosis.separation import words as stand_in_words
 from jetpipe_ros.diagnosis.verdict import NO_EFFECT
 from jetpipe_ros.figures import png_img, pyplot
+from jetpipe_ros.model import ModelParams
+from jetpipe_ros.model.actuator import hysteresis_plays
 
 COLORS = {"data": "#444444", "nominal": "#d62728", "augmented": "#1f77b4"}
 
@@ -358,6 +361,9 @@ def summary(result: dict) -> str:
             lines.append(f"Form of <code>{html.escape(effect)}</code>: <b>"
                          f"{html.escape(cmp['chosen'])}</b> (held-out gap "
                          f"{gaps.get(cmp['chosen'], float('nan')):.2f} %{rest}).")
+        loop = loop_words(v)
+        if loop:
+            lines.append(html.escape(loop))
         lines.append(f"What the effect leaves of the gap it was judged against: "
                      f"{100 * v['remaining_share']:.0f} %.")
         words = v["effect_reason"]
@@ -452,6 +458,38 @@ def summary(result: dict) -> str:
                      "(see <i>What these experiments can show</i>): "
                      + _what_would_tell(result, imitated))
     return "<p>" + "</p><p>".join(lines) + "</p>"
+
+
+def loop_words(verdict: dict) -> str | None:
+    """The named valve hysteresis's loop in words: its plays' thresholds [V] and the share of
+    the loop each holds, as the augmented model runs them (``spread`` and ``sharp_share`` are
+    knobs, not what a user sees in a measured loop). None when no hysteresis is named."""
+    if "valve_hysteresis" not in verdict["effects"]:
+        return None
+    values = (verdict["params"] if len(verdict["effects"]) == 1
+              else verdict["params"]["valve_hysteresis"])
+    r, w = hysteresis_plays(CANDIDATES["valve_hysteresis"].apply(ModelParams(), values))
+    if r.size == 0:
+        return None
+    words = f"The hysteresis loop found: {r.size} play operators"
+    if np.ptp(r) < LOOP_RESOLUTION:
+        return words + f" at one threshold, {r[0]:.3f} V: one sharp loop."
+    words += (f" with thresholds from {r.min():.3f} to {r.max():.3f} V (weighted mean "
+              f"{w @ r:.3f} V: the half-width of a loop the command runs through in full)")
+    end = int(np.argmax(w))
+    if np.ptp(w) < 0.005:
+        return words + ", each holding an equal share of the loop: a rounded loop."
+    rest = np.delete(r, end)
+    return (words + f"; its {'narrowest' if end == 0 else 'widest'} play ({r[end]:.3f} V) "
+            f"holds {100 * w[end]:.0f} % of the loop, the other {rest.size} "
+            f"({rest.min():.3f} to {rest.max():.3f} V) {100 * np.delete(w, end).max():.0f} % each. "
+            f"When the command turns back, each play's share of the valve's output stays put "
+            f"until the command has moved twice that play's threshold.")
+
+
+#: Thresholds closer than this [V] read as one sharp loop: a tenth of the smallest typical
+#: half-width (0.1 V, docs/effects.md), below what the loop's position shows.
+LOOP_RESOLUTION = 0.01
 
 
 def _limit_cell(limit: dict) -> _Html:
