@@ -376,3 +376,35 @@ def test_the_grid_from_a_given_base_leaves_the_effect_at_nothing_out(from_base):
     assert seen == pytest.approx(list(lengths[1:] if from_base else lengths))
     assert hose.knobs[0].to_value(start[len(CALIBRATION.knobs)]) == pytest.approx(
         lengths[1] if from_base else 0.0)
+
+
+@pytest.mark.parametrize("refit_error", [2e-4, 9e-4])
+def test_the_effect_without_the_calibration_is_refitted_from_the_joint_fits_values(
+        refit_error):
+    """Whether the recalibration is needed beside the named effect is judged against the effect
+    fitted without it. That fit descends from the better of the fit alone and the joint fit's
+    effect values (rows of the start), with the joint budget, and the lower cost is kept: a fit
+    alone stuck in another basin would make the calibration look needed."""
+    from jetpipe_ros.diagnosis.diagnose import JOINT_BUDGET, effect_without_calibration
+
+    class Refit(_StubFitter):
+        def run(self, jobs, labels=None):
+            self.jobs += jobs
+            return [_stub_fit(j.groups, refit_error) for j in jobs]
+
+    cal, effect = CALIBRATION.name, "valve_hysteresis"
+    joint = _stub_fit((cal, effect), 1.5e-4)
+    joint.z = np.arange(joint.z.size) / 20.0
+    n_cal = len(CALIBRATION.knobs)
+    alone = _stub_fit((effect,), 5e-4)
+    fitter = Refit(None, None)
+    kept = effect_without_calibration(fitter, NOMINAL, joint, alone, n_cal, lambda m: None)
+    (job,) = fitter.jobs
+    assert job.base is NOMINAL and job.groups == (effect,) and job.budget == JOINT_BUDGET
+    np.testing.assert_array_equal(job.start, np.vstack([alone.z, joint.z[n_cal:]]))
+    assert (kept is alone) == (refit_error > 5e-4)
+    assert kept.train.mse["y"] == min(refit_error, 5e-4)
+    # A pair (never fitted alone): from the joint fit's values only.
+    fitter.jobs.clear()
+    effect_without_calibration(fitter, NOMINAL, joint, None, n_cal, lambda m: None)
+    np.testing.assert_array_equal(fitter.jobs[0].start, joint.z[n_cal:])
