@@ -222,8 +222,10 @@ _EFFECT_PARAMS: dict[str, list[ParamSpec]] = {
            "and its chamber (form port; ISO 6358, choked flow C rho_0 p_up, critical ratio "
            "0.528): 1e-8 m^3/(s Pa) = 1 dm^3/(s bar)", "m^3/(s Pa)", 1e-11, 1e-5),
         _p("port_index", 0.5, "Subsonic index m of that restriction (form port; ISO "
-           "6358-1:2013): 0.5 an orifice, up to 1 a porous element whose drop is linear in "
-           "the flow near equal pressures", "", 0.5, 1.0),
+           "6358-1:2013, its flow times (mean pressure / 4.1648 bar)^(2 m - 1)): 0.5 an "
+           "orifice, up to 1 a porous element following Darcy's compressible law (the drop "
+           "linear in the flow near equal pressures, the conductance in proportion to the "
+           "mean pressure)", "", 0.5, 1.0),
     ],
     "valve_hysteresis": [
         _p("half_width", 0.25, "Hysteresis loop half-width (the plays' weighted mean "
