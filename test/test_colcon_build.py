@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from jetpipe_ros.compiled_cache import STAMP
+
 REPO = Path(__file__).resolve().parent.parent
 PACKAGE_FILES = ("package.xml", "setup.py", "setup.cfg", "resource", "config", "msg_defs",
                  "jetpipe_ros")
@@ -51,6 +53,12 @@ def workspace(tmp_path_factory, compiled_kernel) -> Path:
         if target.parent.parent.is_dir():
             target.parent.mkdir(exist_ok=True)
             shutil.copy2(cached, target)
+    # With the digest of the sources it was built from (jetpipe_ros.compiled_cache), else the
+    # installed package takes it as stale and removes it.
+    stamp = REPO / "jetpipe_ros" / "__pycache__" / STAMP
+    if stamp.is_file():
+        (site / "jetpipe_ros" / "__pycache__").mkdir(exist_ok=True)
+        shutil.copy2(stamp, site / "jetpipe_ros" / "__pycache__" / STAMP)
     subprocess.run([sys.executable, "-c", "from jetpipe_ros.model import compile_kernel; "
                     "compile_kernel()"], env={**env, "PYTHONPATH": str(site)}, cwd=ws,
                    check=True, timeout=600)
