@@ -1,6 +1,7 @@
 """The valve_lag effect's ``port`` form (model/port.py): a port volume before each chamber behind
-an ISO 6358 restriction (Darcy's law at its porous end), checked against the physics of a volume behind a restriction (the
-steady drop, the time constant, the added volume) and against the model without it."""
+an ISO 6358 restriction (Darcy's law at its porous end), checked against the physics of a volume
+behind a restriction (the steady drop, the time constant, the added volume) and against the model
+without it."""
 
 import math
 

@@ -195,9 +195,9 @@ HOSE_KNOBS = (Knob("length", 0.0, 2.5, 0.0),
 #: 4.2 bar its time constant runs from 8 ms at rest (37 ms passing 1 g/s, its drop then 4.3 bar:
 #: the narrowest a valve of this flow works through) to 0.1 ms (a dead volume and nothing
 #: else at a 1 ms sample). Subsonic index m: 0.5 (an orifice, a fitting) to 1 (a porous
-#: element: Darcy's compressible law, the drop linear in the flow), its whole extent. C and m mean nothing without a
-#: volume, so they are marked as spanning their extent: the candidate vanishes with the volume
-#: alone (as the hose's bore).
+#: element: Darcy's compressible law, the drop linear in the flow), its whole extent. C and m
+#: mean nothing without a volume, so they are marked as spanning their extent: the candidate
+#: vanishes with the volume alone (as the hose's bore).
 PORT_KNOBS = (Knob("port_volume", 0.0, 1e-4, 0.0),
               Knob("port_conductance", 1e-9, 1e-7, 1e-7, log=True, extent=True),
               Knob("port_index", 0.5, 1.0, 0.5, extent=True))

@@ -7,11 +7,12 @@ discharges into the chamber at p_c [Pa] through the restriction:
 
     V_p / (gamma r T) dp_p/dt = q(u_eq, p_p) - w,     w = w(p_p, p_c)
 
-- **The restriction: ISO 6358 and Darcy**, as pneumatic catalogues describe filters and fittings: a sonic
-  conductance C [m^3/(s Pa)] (choked flow C rho_0 p_up, at the standard reference atmosphere
-  rho_0 = 1.185 kg/m^3, T_0 = 293.15 K of ISO 8778), a critical pressure ratio b and, since
-  ISO 6358-1:2013, a subsonic index m: w = C rho_0 p_up [1 - ((r - b) / (1 - b))^2]^m below
-  choking, r = p_down / p_up. The flow function is the model's one compressible orifice's
+- **The restriction: ISO 6358 and Darcy**, as pneumatic catalogues describe filters and
+  fittings: a sonic conductance C [m^3/(s Pa)] (choked flow C rho_0 p_up, at the standard
+  reference atmosphere rho_0 = 1.185 kg/m^3, T_0 = 293.15 K of ISO 8778), a critical pressure
+  ratio b and, since ISO 6358-1:2013, a subsonic index m: w = C rho_0 p_up
+  [1 - ((r - b) / (1 - b))^2]^m below choking, r = p_down / p_up. The flow function is the
+  model's one compressible orifice's
   (:func:`~jetpipe_ros.model.flow.orifice_function`, the leakage effect's): with Psi its value
   and Psi* = 0.685 choked, w = A_e p_up / sqrt(r T) Psi* (Psi(r) / Psi*)^(2 m)
   (:func:`~jetpipe_ros.model.flow.orifice_flow` with the index), the effective area
