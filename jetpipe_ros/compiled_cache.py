@@ -16,8 +16,9 @@ alone: reinstalling rewrites every file, and with them every time stamp.
 from __future__ import annotations
 
 import hashlib
-import os
 from pathlib import Path
+
+from jetpipe_ros.fileio import FileError, write_text
 
 #: Sub-packages whose modules define ``njit(cache=True)`` functions.
 COMPILED = ("model", "plant")
@@ -58,10 +59,7 @@ def refresh(root: Path) -> bool:
             except OSError:
                 return False
     try:
-        stamp.parent.mkdir(exist_ok=True)
-        partial = stamp.with_suffix(f".{os.getpid()}.tmp")
-        partial.write_text(digest)
-        os.replace(partial, stamp)
-    except OSError:
+        write_text(stamp, digest)
+    except FileError:
         pass
     return removed
