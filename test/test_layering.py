@@ -11,10 +11,9 @@ PACKAGE = Path(__file__).resolve().parent.parent / "jetpipe_ros"
 #: Lowest first. A module may import its own subpackage and anything in a lower layer.
 LAYERS = (
     # atomic writes and strict JSON/YAML; where the data files are; CLI argument types; child
-    # processes; report figures; progress lines; the measured signals' topics; the compiled
-    # model's cache kept fresh
-    ("fileio", "package_data", "arguments", "children", "figures", "progress", "topics",
-     "compiled_cache"),
+    # processes; report figures; progress lines; the measured signals' topics
+    ("fileio", "package_data", "arguments", "children", "figures", "progress", "topics"),
+    ("compiled_cache",),  # the compiled model's cache kept fresh (writes with fileio)
     ("model",),  # the physics
     ("dataset",),  # data I/O, checked against the model's limits
     ("control",),  # the PID law
