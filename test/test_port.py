@@ -102,15 +102,12 @@ def test_a_porous_restriction_conducts_in_proportion_to_its_mean_pressure():
     alone keeps it the same too: a factor 4 short at 8 bar against 2.)"""
     from jetpipe_ros.model.port import restriction_flow
     area = 5e-9 * RHO_0 * math.sqrt(287.0 * T_0) / 0.68473
-    psi = math.sqrt(2.0 * GAMMA_AIR / (GAMMA_AIR - 1.0)
-                    * (0.998 ** (2.0 / GAMMA_AIR) - 0.998 ** ((GAMMA_AIR + 1.0) / GAMMA_AIR)))
     psi_995 = math.sqrt(2.0 * GAMMA_AIR / (GAMMA_AIR - 1.0)
                         * (0.995 ** (2.0 / GAMMA_AIR) - 0.995 ** ((GAMMA_AIR + 1.0) / GAMMA_AIR)))
-    assert psi > 0  # the drop lies in the linear range (r > 0.995): the law's slope there
     g_0 = area * 0.68473 * (psi_995 / 0.68473) ** 2 / (0.005 * math.sqrt(RT))
     assert g_0 / 5e-9 == pytest.approx(5.0, abs=0.05)
 
-    def conductance(p, index):
+    def conductance(p, index):  # a drop of 0.2 %: r = 0.998, in the linear range (r > 0.995)
         return restriction_flow(area, p / 0.998, p, RT, index) / (p / 0.998 - p)
 
     means = {p: 0.5 * (p / 0.998 + p) for p in (2e5, 4.1648e5, 8e5)}

@@ -54,11 +54,11 @@ def _plays(half_width: float, n: int, spread: float,
     """The valve hysteresis's play thresholds [V] and weights (summing to 1): ``n`` thresholds
     evenly in r (1 +- ``spread``), the narrowest (``sharp_share`` > 0) or the widest (< 0)
     weighing ``|sharp_share|`` more than an equal share, r such that the weighted mean threshold
-    is ``half_width``. One play: ``half_width``."""
-    offsets = (2.0 * np.arange(1, n + 1) - 1.0) / max(n, 1) - 1.0  # in (-1, 1), mean 0
-    weights = np.full(n, (1.0 - abs(sharp_share)) / max(n, 1))
-    if n:
-        weights[0 if sharp_share >= 0.0 else -1] += abs(sharp_share)
+    is ``half_width``; ``n`` >= 1 (:func:`hysteresis_plays` builds none with the effect off).
+    One play: ``half_width``."""
+    offsets = (2.0 * np.arange(1, n + 1) - 1.0) / n - 1.0  # in (-1, 1), mean 0
+    weights = np.full(n, (1.0 - abs(sharp_share)) / n)
+    weights[0 if sharp_share >= 0.0 else -1] += abs(sharp_share)
     shape = 1.0 + spread * offsets
     return half_width * shape / float(weights @ shape), weights
 
@@ -68,9 +68,10 @@ def hysteresis_plays(p: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
     parameters ``p``, the loop the kernel runs; both empty with the effect off."""
     on = p["effects.valve_hysteresis.enabled"]
     half_width = p["effects.valve_hysteresis.half_width"] if on else 0.0
-    n = p["effects.valve_hysteresis.elements"] if half_width > 0.0 else 0
-    return _plays(half_width, n, p["effects.valve_hysteresis.spread"],
-                  p["effects.valve_hysteresis.sharp_share"])
+    if half_width <= 0.0:  # built for every actuator: no array arithmetic for none
+        return np.zeros(0), np.zeros(0)
+    return _plays(half_width, p["effects.valve_hysteresis.elements"],
+                  p["effects.valve_hysteresis.spread"], p["effects.valve_hysteresis.sharp_share"])
 
 
 def build_constants(p: Mapping[str, Any]) -> kernel.Constants:
