@@ -41,7 +41,7 @@ from jetpipe_ros.diagnosis.fit import (BUDGET, Fit, stacked, switched_off, uncer
                                       with_nuisance)
 from jetpipe_ros.diagnosis.jobs import IN_PROCESS, Fitter, Job, Workers, run_job
 from jetpipe_ros.diagnosis.localize import by_regime, frequency_response, position_error_pct
-from jetpipe_ros.diagnosis import nuisance, residuals
+from jetpipe_ros.diagnosis import nuisance, pooled, residuals
 from jetpipe_ros.diagnosis.noise_floor import calibrate, twin
 from jetpipe_ros.diagnosis.placement import place, subsystem_gaps
 from jetpipe_ros.diagnosis.separation import (adopt, separating_experiment, stand_ins,
@@ -533,7 +533,8 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
     imitation = imitations(imitator, visible)
     with_added_sensors(prepared, nominal, cal, visible, imitation)
     still = score(prepared, [persistence(r, dt) for r in prepared.records], "holdout")
-    with Fitter(prepared, swapped(prepared), workers, progress) as fitter:
+    with Fitter(prepared, swapped(prepared), workers, progress,
+                pooled.whole(prepared)) as fitter:
         (cal_row,) = rank([cal], nom_hold, nom_windows, dt)
         progress(f"recalibrated: held-out gap {nom_hold.gap:.2f} % -> {cal.holdout.gap:.2f} % "
                  f"({', '.join(calibration.describe(cal.values[CAL])) or 'no knob off'})")
@@ -593,6 +594,12 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
                 settled = adopt(min(preferred, key=lambda s: s.fit.holdout.gap))
                 final = settled.final
                 errors = uncertainty(prepared, nominal, final)
+        favoured = []
+        if final is None or final.name == CAL:
+            # No effect named: do the records as a whole favour one the held-out split cannot
+            # confirm?
+            favoured = pooled.check(fitter, nominal, cal, pooled.suspects(prepared, cal, ranking),
+                                    (CALIBRATION_BUDGET, JOINT_BUDGET), progress)
     augmented = final.params if final is not None else nominal
     progress("equation errors of the augmented model, against its noise twin")
     stroke = nominal["mechanics.stroke"]
@@ -633,9 +640,13 @@ def _diagnose(prepared: Prepared, nominal: ModelParams, workers: Workers,
     result["data"].update(_data_json(prepared, aligned, signs, unjudged))
     result["visibility"]["imitated_by_recalibration"] = imitation
     hidden = imitated_effects(imitation) if result["verdict"]["effect"] == "none" else {}
-    result["visibility"]["not_ruled_out"] = sorted(hidden)
+    result["visibility"]["favoured_by_all_records"] = favoured if fits else []
+    unconfirmed = {row["effect"] for row in favoured if row["favoured"]} if fits else set()
+    result["visibility"]["not_ruled_out"] = sorted(set(hidden) | unconfirmed)
     if hidden:
         result["verdict"]["reason"] += "; " + _not_ruled_out(hidden)
+    if unconfirmed:
+        result["verdict"]["reason"] += "; " + pooled.words(favoured)
     if result["verdict"]["effects"] and any(units.ASSUMED in note
                                             for note in prepared.corrections):
         result["verdict"]["reason"] += "; " + _gauge_words(result["verdict"])

@@ -60,14 +60,21 @@ class Job:
     start: np.ndarray | None = None
     budget: int = BUDGET
     swapped: bool = False  #: fit on the holdout, judge on the training data (cross-check)
+    #: fit and judge on every record (:func:`jetpipe_ros.diagnosis.pooled.whole`)
+    pooled: bool = False
     #: without ``start``: where the grid's other knobs sit (given, the grid leaves the first
     #: knob's neutral value out: :func:`fit.fit`)
     grid_base: np.ndarray | None = None
 
 
-def run_job(job: Job, prepared: Prepared, other: Prepared) -> Fit:
-    """One fit: on ``prepared``, or on ``other`` (train and holdout exchanged) if swapped."""
-    data = other if job.swapped else prepared
+def run_job(job: Job, prepared: Prepared, other: Prepared, every: Prepared | None = None
+            ) -> Fit:
+    """One fit: on ``prepared``, on ``other`` (train and holdout exchanged) if swapped, or on
+    ``every`` (every record both) if pooled."""
+    if job.pooled and every is None:
+        raise ValueError("a pooled job needs the data with every record both training and "
+                         "held-out")
+    data = every if job.pooled else other if job.swapped else prepared
     return fit(data, job.base, [group(g, data.sensors) for g in job.groups],
                job.start, job.budget, job.grid_base)
 
@@ -78,16 +85,19 @@ class Fitter:
 
     The data go to every worker once, at the first call that uses them (:meth:`Workers.share`;
     the jobs carry the handles), not with every job; ``other`` is the same data with train and
-    holdout exchanged (for cross-checks). A call with a single job runs it in this process.
+    holdout exchanged (for cross-checks), ``every`` with every record both (for pooled jobs).
+    A call with a single job runs it in this process.
     """
 
     def __init__(self, prepared: Prepared, other: Prepared, workers: Workers,
-                 progress: Callable[[str], None]) -> None:
+                 progress: Callable[[str], None], every: Prepared | None = None) -> None:
         self.prepared = prepared
         self.other = other
+        self.every = every
         self.workers = workers
         self.progress = progress
-        self._data: list | None = None  #: handles of (prepared, other) on the workers
+        #: handles of (prepared, other[, every]) on the workers
+        self._data: list | None = None
 
     def __enter__(self) -> Fitter:
         return self
@@ -100,7 +110,8 @@ class Fitter:
     def _shared(self) -> list:
         """The handles of the data on every worker (sent once)."""
         if self._data is None:
-            self._data = self.workers.share([self.prepared, self.other])
+            self._data = self.workers.share(
+                [self.prepared, self.other, *([self.every] if self.every is not None else [])])
             self.progress(f"  fitting on {self.workers} (data sent to every worker)")
         return self._data
 
@@ -117,7 +128,7 @@ class Fitter:
 
         if len(jobs) == 1 or not self.workers.parallel:
             for i, job in enumerate(jobs):
-                report(i, i + 1, run_job(job, self.prepared, self.other))
+                report(i, i + 1, run_job(job, self.prepared, self.other, self.every))
         else:
             for done, (i, f) in enumerate(self.workers.completed(run_job, jobs,
                                                                  *self._shared()), 1):
