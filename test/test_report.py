@@ -107,6 +107,47 @@ def test_a_none_says_no_effect_once_and_what_it_cannot_rule_out_below():
     assert text.count("valve_delay") == 2  # "Not ruled out" and the sensor that would tell
 
 
+def test_a_candidate_the_records_as_a_whole_favour_is_said_apart_with_the_record_to_add():
+    """A `none` on a position-only record of a drooping supply (development seed 8951, case
+    10): the supply line fits the training records better than the recalibration, not the
+    held-out ones, and fitted on every record it leaves a quarter of what the recalibration
+    leaves (jetpipe_ros.diagnosis.pooled). The headline keeps the answer; the candidate is said
+    once, in its own paragraph, with its figures and the held-out record that would decide it;
+    the command line says it too."""
+    from jetpipe_ros.diagnosis.pooled import words
+    from jetpipe_ros.diagnosis.verdict import NO_EFFECT
+    from jetpipe_ros.workflows.cli import summary_lines
+
+    result = json.loads(gzip.decompress(STORED.read_bytes()))
+    row = {"candidate": "supply_pressure:line", "effect": "supply_pressure",
+           "train_gap": 0.0956, "holdout_gap": 0.4636, "recalibration_train_gap": 0.2597,
+           "recalibration_holdout_gap": 0.4941, "pooled_gap": 0.0677,
+           "recalibration_pooled_gap": 0.2831, "pooled_shrinkage": 0.76, "pooled_t": 3.32,
+           "favoured": True, "params": {"pressure": 7.51e5},
+           "decisive_record": "square_3V_0p97Hz"}
+    result["verdict"].update(effect="none", effects=[], params={}, stderr={},
+                             reason=f"{NO_EFFECT}the nominal parameters are off (x); "
+                                    f"recalibrated, the held-out gap shrinks from 3.94 % to "
+                                    f"0.49 %; {words([row])}")
+    result["visibility"].update(not_ruled_out=["supply_pressure"], imitated_by_recalibration={},
+                                favoured_by_all_records=[row])
+    result["visibility"].pop("smallest_shown", None)
+    text = summary(result)
+    assert text.split("</p>")[0].endswith("shrinks from 3.94 % to 0.49 %.")
+    said = text.split("<b>Not ruled out</b> either: ")[1].split("</p>")[0]
+    assert said.startswith("<code>supply_pressure:line</code>, which the records as a whole "
+                           "favour. Fitted on every record, training and held-out, it leaves "
+                           "0.07 % where the recalibration leaves 0.28 %.")
+    assert "0.10 % of them (the recalibration 0.26 %) but 0.46 % held out (the " \
+           "recalibration 0.49 %)" in said
+    assert said.endswith("A training record like <code>square_3V_0p97Hz</code> would decide "
+                         "it.")
+    assert text.count("supply_pressure:line") == 1
+    assert "cannot rule out supply_pressure: the records as a whole favour it, the held-out " \
+           "ones cannot confirm it; a training record like 'square_3V_0p97Hz' would decide " \
+           "it" in summary_lines(result, "out")
+
+
 def test_a_named_hysteresis_loop_is_told_as_its_plays_not_its_knobs():
     """spread 0.5, sharp_share -0.6, half-width 0.25 V, eight plays (worked by hand): offsets
     +-0.125..0.875, shapes 0.5625..1.4375 (sum 8); weights 0.05 each and 0.65 for the widest, so

@@ -44,6 +44,8 @@ from jetpipe_ros.diagnosis.score import predict_all, score, window_errors
 from jetpipe_ros.diagnosis.verdict import MIN_SHRINKAGE, MIN_T, Ranked, paired_t, rank
 from jetpipe_ros.model import ModelParams
 
+#: How the words for the favoured candidates begin in the verdict's reason (:func:`words`).
+FAVOURED = "the records as a whole favour "
 #: Most candidates refitted on all records, those the training records favour most first: each
 #: costs a joint fit.
 MOST = 2
@@ -159,6 +161,6 @@ def words(rows: Sequence[dict]) -> str:
             f"'{row['decisive_record']}' would decide it)")
     if not each:
         return ""
-    return ("the records as a whole favour " + "; and ".join(each)
+    return (FAVOURED + "; and ".join(each)
             + ": what it predicts on the held-out records rests on what the training records "
             "leave free, so the held-out ones cannot confirm it, nor this answer rule it out")

@@ -46,7 +46,14 @@ def summary_lines(result: dict, out: str) -> list[str]:
         lines.append(f"verdict: {v['effect']} (subsystem {v['subsystem']}, confidence "
                      f"{v['confidence']:.2f})")
     hidden = imitated_effects(result["visibility"].get("imitated_by_recalibration", {}))
+    favoured = {row["effect"]: row for row in result["visibility"].get(
+        "favoured_by_all_records", []) if row["favoured"]}
     for effect in result["visibility"].get("not_ruled_out", []) if v["model_fits"] else []:
+        if effect in favoured and effect not in hidden:
+            lines.append(f"cannot rule out {effect}: the records as a whole favour it, the "
+                         f"held-out ones cannot confirm it; a training record like "
+                         f"'{favoured[effect]['decisive_record']}' would decide it")
+            continue
         added = hidden.get(effect, {}).get("with_sensors", {})
         sensors = " or ".join(ADDED[k] for k in telling(added))
         tell = (f"; {sensors} pressure{'s' if sensors == 'both' else ''} would tell" if sensors

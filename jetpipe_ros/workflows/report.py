@@ -24,6 +24,7 @@ from jetpipe_ros.diagnosis.data import Prepared, Record
 from jetpipe_ros.diagnosis.detection import unseen
 from jetpipe_ros.diagnosis.diagnose import NOT_RULED_OUT
 from jetpipe_ros.diagnosis.nuisance import words as nuisance_words
+from jetpipe_ros.diagnosis.pooled import FAVOURED
 from jetpipe_ros.diagnosis.separation import words as stand_in_words
 from jetpipe_ros.diagnosis.verdict import NO_EFFECT
 from jetpipe_ros.figures import png_img, pyplot
@@ -305,6 +306,13 @@ def frequency_figure(result: dict, augmented: bool) -> str:
     return png_img(fig)
 
 
+def _without_caveats(reason: str) -> str:
+    """A verdict's reason without what it cannot rule out, which the summary says apart."""
+    for caveat in (NOT_RULED_OUT, FAVOURED):
+        reason = reason.split("; " + caveat)[0]
+    return reason
+
+
 def summary(result: dict) -> str:
     """The plain-language summary at the top of the report."""
     v = result["verdict"]
@@ -325,12 +333,12 @@ def summary(result: dict) -> str:
                      f"{html.escape(v['reason'])}. No effect is named.")
     elif v["effect"] == "none":
         # What the answer cannot rule out is said below ("Not ruled out"), with a table.
-        reason = v["reason"].split("; " + NOT_RULED_OUT)[0].removeprefix(NO_EFFECT)
+        reason = _without_caveats(v["reason"]).removeprefix(NO_EFFECT)
         lines.append(f"<b>No unmodelled effect identified:</b> {html.escape(reason)}.")
     elif v["effect"] == "unlisted":
         lines.append(f"<b>A gap beyond noise remains that no listed effect explains</b> "
                      f"(<code>unlisted</code>, subsystem {html.escape(v['subsystem'])}): "
-                     f"{html.escape(v['reason'])}.")
+                     f"{html.escape(_without_caveats(v['reason']))}.")
         if v["partial"]:
             lines.append(f"The best candidate, <code>{html.escape(v['partial']['candidate'])}"
                          f"</code>, removes only {100 * v['partial']['shrinkage']:.0f} % of it: "
@@ -450,14 +458,32 @@ def summary(result: dict) -> str:
     elif result["visibility"].get("smallest_shown"):
         lines.append("The smallest size of each candidate these records would show is in "
                      "<i>What these experiments can show</i>.")
-    imitated = result["visibility"].get("not_ruled_out", [])
+    hidden = imitated_effects(result["visibility"].get("imitated_by_recalibration", {}))
+    imitated = [e for e in result["visibility"].get("not_ruled_out", []) if e in hidden]
     if imitated:
         lines.append("<b>Not ruled out</b> by this answer: "
                      + ", ".join(f"<code>{e}</code>" for e in imitated)
                      + ". At its typical size the recalibration imitates each on these records "
                      "(see <i>What these experiments can show</i>): "
                      + _what_would_tell(result, imitated))
+    lines += [_favoured_words(row) for row in result["visibility"].get(
+        "favoured_by_all_records", []) if row["favoured"]]
     return "<p>" + "</p><p>".join(lines) + "</p>"
+
+
+def _favoured_words(row: dict) -> str:
+    """A candidate the records as a whole favour and the held-out ones cannot confirm
+    (:mod:`jetpipe_ros.diagnosis.pooled`), in words."""
+    return (f"<b>Not ruled out</b> either: <code>{row['candidate']}</code>, which the records "
+            f"as a whole favour. Fitted on every record, training and held-out, it leaves "
+            f"{row['pooled_gap']:.2f} % where the recalibration leaves "
+            f"{row['recalibration_pooled_gap']:.2f} %. Fitted on the training records alone "
+            f"it leaves {row['train_gap']:.2f} % of them (the recalibration "
+            f"{row['recalibration_train_gap']:.2f} %) but {row['holdout_gap']:.2f} % held out "
+            f"(the recalibration {row['recalibration_holdout_gap']:.2f} %): what it predicts "
+            f"there rests on what the training records leave free, so the held-out "
+            f"experiments cannot confirm it. A training record like "
+            f"<code>{html.escape(row['decisive_record'])}</code> would decide it.")
 
 
 def loop_words(verdict: dict) -> str | None:
