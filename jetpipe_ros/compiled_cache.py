@@ -8,14 +8,17 @@ port law in it, and the tests of the new law failed against the old physics. So,
 is imported, a digest of the sources of the packages that hold compiled functions
 (:data:`COMPILED`, together: the plant's loop calls the model's functions) is compared with the
 one stored beside their caches; if it differs, their cache files are removed (numba compiles
-afresh, once) and the new digest is stored. An installed package whose directory cannot be
-written has its cache elsewhere (numba's user-wide cache, or ``NUMBA_CACHE_DIR``) and is left
-alone: reinstalling rewrites every file, and with them every time stamp.
+afresh, once) and the new digest is stored. With ``NUMBA_CACHE_DIR`` set, numba keeps the
+cache of each source directory under that directory instead (:func:`user_cache_dirs`), and those
+files go too. An installed package whose directory cannot be written has its cache elsewhere
+(numba's user-wide cache) and is left alone: reinstalling rewrites every file, and with them
+every time stamp.
 """
 
 from __future__ import annotations
 
 import hashlib
+import os
 from pathlib import Path
 
 from jetpipe_ros.fileio import FileError, write_text
@@ -37,6 +40,22 @@ def sources_digest(root: Path) -> str:
     return digest.hexdigest()
 
 
+def user_cache_dirs(root: Path) -> list[Path]:
+    """Where numba keeps the caches of :data:`COMPILED` under ``root`` when ``NUMBA_CACHE_DIR``
+    is set (none otherwise): numba's rule for a user-provided cache directory (its
+    ``_CacheLocator.get_suitable_cache_subpath``), ``<dir>/<folder name>_<SHA-1 of the folder's
+    absolute path>``."""
+    base = os.environ.get("NUMBA_CACHE_DIR")
+    if not base:
+        return []
+    out = []
+    for name in COMPILED:
+        folder = os.path.abspath(root / name)
+        out.append(Path(base) / f"{os.path.basename(folder)}_"
+                                f"{hashlib.sha1(folder.encode()).hexdigest()}")
+    return out
+
+
 def refresh(root: Path) -> bool:
     """Remove the numba cache files of :data:`COMPILED` under ``root`` unless they were built
     from the present sources (the digest stored at the last refresh); store the present digest.
@@ -49,8 +68,8 @@ def refresh(root: Path) -> bool:
     except OSError:
         pass
     removed = False
-    for name in COMPILED:
-        for path in (root / name / "__pycache__").glob("*.nb[ic]"):
+    for folder in [root / name / "__pycache__" for name in COMPILED] + user_cache_dirs(root):
+        for path in folder.glob("*.nb[ic]"):
             try:
                 path.unlink()
                 removed = True

@@ -1,7 +1,9 @@
 """The numba cache of the model is removed when a module it compiles in changes
 (jetpipe_ros.compiled_cache): numba itself checks only the file that defines a cached function."""
 
-from jetpipe_ros.compiled_cache import STAMP, refresh
+from numba.core.caching import _CacheLocator
+
+from jetpipe_ros.compiled_cache import STAMP, refresh, user_cache_dirs
 
 
 def _tree(root):
@@ -46,3 +48,24 @@ def test_a_cache_without_a_stored_digest_is_taken_as_stale(tmp_path):
     root = _tree(tmp_path)
     files = _cache(root)
     assert refresh(root) and not any(f.exists() for f in files)
+
+
+def test_a_cache_under_numba_cache_dir_is_removed_too(tmp_path, monkeypatch):
+    """With ``NUMBA_CACHE_DIR`` set numba keeps each source folder's cache in a folder of that
+    directory named by its own rule; a change of the sources removes those files as well."""
+    root = _tree(tmp_path / "src")
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "numba"))
+    dirs = user_cache_dirs(root)
+    assert [d.name for d in dirs] == [
+        _CacheLocator.get_suitable_cache_subpath(str(root / name / "kernel.py"))
+        for name in ("model", "plant")]
+    assert not refresh(root)
+    files = []
+    for d in dirs:
+        d.mkdir(parents=True)
+        files.append(d / "kernel.advance-1.py311.nbi")
+        files[-1].write_bytes(b"compiled")
+    (root / "model" / "port.py").write_text("def law(): return 2\n")
+    assert refresh(root) and not any(f.exists() for f in files)
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
+    assert user_cache_dirs(root) == []
