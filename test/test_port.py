@@ -12,6 +12,7 @@ from locked_step import chamber_time_constant
 from jetpipe_ros.diagnosis.candidates import CANDIDATES, combinable
 from jetpipe_ros.model import Actuator, ModelParams, ParameterError, build_constants, kernel
 from jetpipe_ros.model import simulate
+from jetpipe_ros.model.actuator import port_time_constant
 from jetpipe_ros.model.flow import GAMMA_AIR, chamber_inflow
 from jetpipe_ros.model.params import FLOW_COEFFICIENTS
 
@@ -141,6 +142,9 @@ def test_the_port_relaxes_with_its_small_signal_time_constant():
         use = excess > 20.0  # well above the round-off of the settled value
         slope = np.polyfit(t[use], np.log(excess[use]), 1)[0]
         assert -1.0 / slope == pytest.approx(tau, rel=0.01)
+        # What the report says of a named port: the same time constant from its parameters.
+        assert port_time_constant(port(P, 4e-5, conductance)) == pytest.approx(tau, rel=1e-3)
+    assert port_time_constant(P) is None
 
 
 def test_the_port_volume_adds_to_the_chamber_at_low_frequency():

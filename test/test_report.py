@@ -148,6 +148,32 @@ def test_a_candidate_the_records_as_a_whole_favour_is_said_apart_with_the_record
            "it" in summary_lines(result, "out")
 
 
+def test_a_named_port_is_told_as_a_catalogue_gives_it_with_its_time_constant():
+    """A named port told by its volume, its restriction in a catalogue's units (1e-8
+    m^3/(s Pa) = 1 dm^3/(s bar)), what its index makes of it against two standard errors (the
+    port of held-out seed 5591 was fitted at m = 1 +- 0.016), and the time constant at rest
+    worked by hand in test_port (40 cm^3 behind 0.3 dm^3/(s bar) at m = 0.5: 3.0 ms)."""
+    from jetpipe_ros.workflows.report import port_words
+
+    verdict = {"effect": "valve_lag", "effects": ["valve_lag"], "forms": {"valve_lag": "port"},
+               "params": {"port_volume": 4e-5, "port_conductance": 3e-9, "port_index": 0.5},
+               "stderr": {"valve_lag": {"port_index": 0.016}}}
+    said = port_words(verdict)
+    assert said.startswith("The port found: 40.0 cm^3 before each chamber behind a restriction "
+                           "of sonic conductance 0.3 dm^3/(s bar) (ISO 6358) and subsonic "
+                           "index m = 0.50 +- 0.02: an orifice or a fitting")
+    assert said.endswith("a time constant of 3.0 ms.")
+    verdict["params"]["port_index"] = 1.0
+    assert "a porous element such as a sintered filter" in port_words(verdict)
+    verdict["stderr"]["valve_lag"]["port_index"] = 0.28
+    verdict["params"]["port_index"] = 0.72
+    assert "the records do not tell an orifice (m = 0.5) from a porous element (m = 1)" in \
+        port_words(verdict)
+    verdict["stderr"]["valve_lag"]["port_index"] = 0.05
+    assert "between an orifice (m = 0.5) and a porous element (m = 1)" in port_words(verdict)
+    assert port_words({**verdict, "forms": {"valve_lag": "first_order"}}) is None
+
+
 def test_a_named_hysteresis_loop_is_told_as_its_plays_not_its_knobs():
     """spread 0.5, sharp_share -0.6, half-width 0.25 V, eight plays (worked by hand): offsets
     +-0.125..0.875, shapes 0.5625..1.4375 (sum 8); weights 0.05 each and 0.65 for the widest, so

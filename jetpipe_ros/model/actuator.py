@@ -17,11 +17,11 @@ import numpy as np
 
 from jetpipe_ros.model import kernel
 from jetpipe_ros.model.flow import (GAMMA_AIR, P_ATM, P_SUPPLY_NOMINAL, FlowLaw,
-                                    flow_lag_matrix)
+                                    chamber_inflow, flow_lag_matrix)
 from jetpipe_ros.model.friction import FRICTION_FORMS, MAXWELL_SLIP, STATIC, element_slips
 from jetpipe_ros.model.hose import hose_constants, inner_steps
 from jetpipe_ros.model.params import ModelParams
-from jetpipe_ros.model.port import effective_area
+from jetpipe_ros.model.port import POROUS_REFERENCE, effective_area, small_drop_conductance
 from jetpipe_ros.model.valve import sample_valve
 
 
@@ -72,6 +72,26 @@ def hysteresis_plays(p: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
         return np.zeros(0), np.zeros(0)
     return _plays(half_width, p["effects.valve_hysteresis.elements"],
                   p["effects.valve_hysteresis.spread"], p["effects.valve_hysteresis.sharp_share"])
+
+
+#: Pressure step [Pa] of the finite difference giving the flow map's slope at rest.
+MAP_SLOPE_STEP = 100.0
+
+
+def port_time_constant(p: Mapping[str, Any]) -> float | None:
+    """The small-signal time constant [s] at rest of the port (``valve_lag``, ``form: port``)
+    in validated parameters ``p``: V_p / (gamma r T (G_0 + K_v)), G_0 the restriction's slope
+    within 0.5 % of equal pressures at the rest pressure (:data:`port.POROUS_REFERENCE`) and K_v
+    the flow map's slope -dq/dp there with the valve at its null (:mod:`~jetpipe_ros.model.port`,
+    *Time constant*). None without a port."""
+    c = build_constants(p)
+    if c.port_rate == 0.0:
+        return None
+    g_0 = small_drop_conductance(c.port_area, c.port_index, c.rt)
+    k_v = (chamber_inflow(c.flow_coef, 0.0, POROUS_REFERENCE, c.p_supply, c.flow_law)
+           - chamber_inflow(c.flow_coef, 0.0, POROUS_REFERENCE + MAP_SLOPE_STEP, c.p_supply,
+                            c.flow_law)) / MAP_SLOPE_STEP
+    return 1.0 / (c.port_rate * (g_0 + k_v))  # port_rate = gamma r T / V_p
 
 
 def build_constants(p: Mapping[str, Any]) -> kernel.Constants:

@@ -29,7 +29,7 @@ from jetpipe_ros.diagnosis.separation import words as stand_in_words
 from jetpipe_ros.diagnosis.verdict import NO_EFFECT
 from jetpipe_ros.figures import png_img, pyplot
 from jetpipe_ros.model import ModelParams
-from jetpipe_ros.model.actuator import hysteresis_plays
+from jetpipe_ros.model.actuator import hysteresis_plays, port_time_constant
 
 COLORS = {"data": "#444444", "nominal": "#d62728", "augmented": "#1f77b4"}
 
@@ -369,9 +369,9 @@ def summary(result: dict) -> str:
             lines.append(f"Form of <code>{html.escape(effect)}</code>: <b>"
                          f"{html.escape(cmp['chosen'])}</b> (held-out gap "
                          f"{gaps.get(cmp['chosen'], float('nan')):.2f} %{rest}).")
-        loop = loop_words(v)
-        if loop:
-            lines.append(html.escape(loop))
+        for told in (loop_words(v), port_words(v)):
+            if told:
+                lines.append(html.escape(told))
         lines.append(f"What the effect leaves of the gap it was judged against: "
                      f"{100 * v['remaining_share']:.0f} %.")
         words = v["effect_reason"]
@@ -511,6 +511,37 @@ def loop_words(verdict: dict) -> str | None:
             f"({rest.min():.3f} to {rest.max():.3f} V) {100 * np.delete(w, end).max():.0f} % each. "
             f"When the command turns back, each play's share of the valve's output stays put "
             f"until the command has moved twice that play's threshold.")
+
+
+def port_words(verdict: dict) -> str | None:
+    """The named port (``valve_lag``, ``form: port``) in words: its volume, its restriction as
+    a catalogue gives it (sonic conductance, subsonic index m) and what m makes of it (0.5 an
+    orifice or a fitting, 1 a porous element; each told only when the other lies beyond two
+    standard errors of the fitted m), and its time constant at rest
+    (:func:`~jetpipe_ros.model.actuator.port_time_constant`). None when no port is named."""
+    if (verdict.get("forms") or {}).get("valve_lag") != "port":
+        return None
+    values = (verdict["params"] if len(verdict["effects"]) == 1
+              else verdict["params"]["valve_lag"])
+    m = values["port_index"]
+    sigma = (verdict.get("stderr") or {}).get("valve_lag", {}).get("port_index") or 0.0
+    orifice, porous = (abs(m - end) <= max(2.0 * sigma, 0.01) for end in (0.5, 1.0))
+    if orifice and porous:
+        kind = "the records do not tell an orifice (m = 0.5) from a porous element (m = 1)"
+    elif orifice:
+        kind = "an orifice or a fitting (the drop grows as the flow squared)"
+    elif porous:
+        kind = ("a porous element such as a sintered filter (Darcy: the drop linear in the flow, "
+                "the conductance growing with the mean pressure)")
+    else:
+        kind = "between an orifice (m = 0.5) and a porous element (m = 1)"
+    tau = port_time_constant(CANDIDATES["valve_lag:port"].apply(ModelParams(), values))
+    spread = f" +- {sigma:.2f}" if sigma else ""
+    return (f"The port found: {values['port_volume'] * 1e6:.1f} cm^3 before each chamber "
+            f"behind a restriction of sonic conductance "
+            f"{values['port_conductance'] * 1e8:.2g} dm^3/(s bar) (ISO 6358) and subsonic "
+            f"index m = {m:.2f}{spread}: {kind}. At rest the port's pressure follows the "
+            f"valve's flow with a time constant of {tau * 1e3:.1f} ms.")
 
 
 #: Thresholds closer than this [V] read as one sharp loop: a tenth of the smallest typical
