@@ -94,6 +94,11 @@ def test_a_supply_the_training_records_leave_free_at_full_flow_is_favoured_by_al
     assert out["pooled_gap"] < 0.2 * out["recalibration_pooled_gap"]
     assert out["params"]["pressure"] == pytest.approx(SUPPLY["pressure"], rel=0.02)
     assert "a training record like 'square_full' would decide it" in pooled.words([out])
+    (full,) = out["by_record"]  # the one held-out record, under the three models
+    assert full["record"] == "square_full"
+    assert full["trained"] == pytest.approx(out["holdout_gap"])
+    assert full["recalibration"] == pytest.approx(out["recalibration_holdout_gap"])
+    assert full["pooled"] < 0.2 * full["trained"]
 
 
 def test_a_supply_line_on_records_without_one_is_neither_suspect_nor_favoured(tmp_path):

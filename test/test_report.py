@@ -143,6 +143,12 @@ def test_a_candidate_the_records_as_a_whole_favour_is_said_apart_with_the_record
     assert said.endswith("A training record like <code>square_3V_0p97Hz</code> would decide "
                          "it.")
     assert text.count("supply_pressure:line") == 1
+    row["by_record"] = [{"record": "square_3V_0p97Hz", "recalibration": 0.71,
+                         "recalibration_pooled": 0.40, "trained": 0.73, "pooled": 0.11},
+                        {"record": "sweep_0p8V", "recalibration": 0.18,
+                         "recalibration_pooled": 0.15, "trained": 0.15, "pooled": 0.04}]
+    from jetpipe_ros.workflows.report import favoured_figure
+    assert favoured_figure(row).startswith("<img")
     assert "cannot rule out supply_pressure: the records as a whole favour it, the held-out " \
            "ones cannot confirm it; a training record like 'square_3V_0p97Hz' would decide " \
            "it" in summary_lines(result, "out")

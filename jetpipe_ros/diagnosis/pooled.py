@@ -42,7 +42,7 @@ from jetpipe_ros.diagnosis.candidates import effect_of
 from jetpipe_ros.diagnosis.data import Prepared
 from jetpipe_ros.diagnosis.fit import Fit
 from jetpipe_ros.diagnosis.jobs import Fitter, Job
-from jetpipe_ros.diagnosis.score import predict_all, score, window_errors
+from jetpipe_ros.diagnosis.score import Score, predict_all, score, window_errors
 from jetpipe_ros.diagnosis.verdict import MIN_SHRINKAGE, MIN_T, Ranked, paired_t, rank
 from jetpipe_ros.model import ModelParams
 
@@ -115,6 +115,8 @@ def check(fitter: Fitter, nominal: ModelParams, cal: Fit, rows: Sequence[Ranked]
     out = []
     for r, p in zip(rows, pooled):
         (together,) = rank([p], base.holdout, base.holdout_windows, fitter.prepared.dt)
+        scores = per_record(fitter.prepared, {"recalibration": cal, "recalibration_pooled": base,
+                                              "trained": r.fit, "pooled": p})
         out.append({
             "candidate": r.fit.name, "effect": effect_of(r.fit.name),
             "train_gap": r.fit.train.gap, "holdout_gap": r.fit.holdout.gap,
@@ -124,16 +126,16 @@ def check(fitter: Fitter, nominal: ModelParams, cal: Fit, rows: Sequence[Ranked]
             "pooled_shrinkage": together.shrinkage, "pooled_t": together.t,
             "favoured": together.explains,
             "params": p.values[r.fit.name],
-            "decisive_record": decisive(fitter.prepared, r.fit, p)})
+            "decisive_record": decisive(scores),
+            "by_record": [{"record": name, **{k: v.gap for k, v in by.items()}}
+                          for name, by in scores.items()]})
     return out
 
 
-def decisive(prepared: Prepared, trained: Fit, pooled: Fit) -> str:
-    """The held-out record on which ``trained`` (fitted on the training records) falls
-    furthest short of ``pooled`` (the same knobs fitted on every record): the one whose
-    information the training records lack."""
-    short = {}
-    for fit_ in (trained, pooled):
+def per_record(prepared: Prepared, fits: dict[str, Fit]) -> dict[str, dict[str, Score]]:
+    """Each held-out record's score under each of ``fits`` (by a name of the caller's)."""
+    out: dict[str, dict[str, Score]] = {}
+    for name, fit_ in fits.items():
         preds = predict_all(fit_.params, prepared, "holdout")
         for i, rec in enumerate(prepared.records):
             if preds[i] is None:
@@ -142,9 +144,15 @@ def decisive(prepared: Prepared, trained: Fit, pooled: Fit) -> str:
                      for j, r in enumerate(prepared.records)]
             s = score(prepared, preds, "holdout", masks=masks)
             if s.count:
-                short[rec.name] = short.get(rec.name, 0.0) + (s.total if fit_ is trained
-                                                              else -s.total)
-    return max(short, key=short.get)
+                out.setdefault(rec.name, {})[name] = s
+    return out
+
+
+def decisive(scores: dict[str, dict[str, Score]]) -> str:
+    """The held-out record on which the candidate fitted on the training records (``trained``)
+    falls furthest short of its fit on every record (``pooled``), by :func:`per_record`'s
+    ``scores``: the one whose information the training records lack."""
+    return max(scores, key=lambda r: scores[r]["trained"].total - scores[r]["pooled"].total)
 
 
 def words(rows: Sequence[dict]) -> str:

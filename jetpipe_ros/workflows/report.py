@@ -78,6 +78,28 @@ def ranking_figure(result: dict) -> str:
     return png_img(fig)
 
 
+def favoured_figure(row: dict) -> str:
+    """Each held-out record's gap under the recalibration and under a candidate the records as
+    a whole favour, each fitted on the training records and on every record
+    (``visibility.favoured_by_all_records``): where the training records leave it free."""
+    plt = pyplot()
+    records = [r["record"] for r in row["by_record"]]
+    fig, ax = plt.subplots(figsize=(8, 0.75 * len(records) + 1.4))
+    y = np.arange(len(records))[::-1]
+    for k, (key, label, color) in enumerate((
+            ("recalibration", "recalibration, fitted on the training records", "#888888"),
+            ("recalibration_pooled", "recalibration, fitted on every record", "#cccccc"),
+            ("trained", f"{row['candidate']}, fitted on the training records", "#ff7f0e"),
+            ("pooled", f"{row['candidate']}, fitted on every record", COLORS["augmented"]))):
+        ax.barh(y + (1.5 - k) * 0.2, [r[key] for r in row["by_record"]], height=0.2,
+                color=color, label=label)
+    ax.set_yticks(y, [f"{r} (decisive)" if r == row["decisive_record"] else r
+                      for r in records])
+    ax.set_xlabel("held-out gap, excess NRMSE [%]")
+    ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=2, fontsize=8, frameon=False)
+    return png_img(fig)
+
+
 def placement_figure(placement: dict) -> str:
     """Where the gap starts (:mod:`placement`): the share of the held-out gap each one-signal
     experiment removes, against the share that places a cause, and the gap each subsystem's
@@ -789,6 +811,12 @@ def render(result: dict, prepared: Prepared, preds: dict, remainders: dict) -> s
                            *(["second fold gap %"] if folds else []),
                            "shrinkage", "paired t", "t cross-check", "explains",
                            "shrinkage alone", "fitted parameters"]),
+        *(f"<p>Not ruled out: <code>{html.escape(row['candidate'])}</code>, which the records "
+          f"as a whole favour (the summary). Each held-out record's gap under the "
+          f"recalibration and under the candidate fitted on the training records and on every "
+          f"record:</p>" + favoured_figure(row)
+          for row in result["visibility"].get("favoured_by_all_records", [])
+          if row["favoured"] and row.get("by_record")),
         "<h2>Model against data</h2>", overlay_figure(prepared, preds, result, augmented),
         "<h2>Where the gap lies</h2>", "<h3>By regime (held out)</h3>",
         regime_figure(result), "<h3>By frequency</h3>", frequency_figure(result, augmented),
