@@ -74,10 +74,6 @@ def hysteresis_plays(p: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
                   p["effects.valve_hysteresis.spread"], p["effects.valve_hysteresis.sharp_share"])
 
 
-#: Pressure step [Pa] of the finite difference giving the flow map's slope at rest.
-MAP_SLOPE_STEP = 100.0
-
-
 def port_time_constant(p: Mapping[str, Any]) -> float | None:
     """The small-signal time constant [s] at rest of the port (``valve_lag``, ``form: port``)
     in validated parameters ``p``: V_p / (gamma r T (G_0 + K_v)), G_0 the restriction's slope
@@ -88,9 +84,11 @@ def port_time_constant(p: Mapping[str, Any]) -> float | None:
     if c.port_rate == 0.0:
         return None
     g_0 = small_drop_conductance(c.port_area, c.port_index, c.rt)
+    # The map's slope by the kernel's own finite difference (the step its port integration uses).
+    step = kernel.HOSE_SLOPE_STEP
     k_v = (chamber_inflow(c.flow_coef, 0.0, POROUS_REFERENCE, c.p_supply, c.flow_law)
-           - chamber_inflow(c.flow_coef, 0.0, POROUS_REFERENCE + MAP_SLOPE_STEP, c.p_supply,
-                            c.flow_law)) / MAP_SLOPE_STEP
+           - chamber_inflow(c.flow_coef, 0.0, POROUS_REFERENCE + step, c.p_supply,
+                            c.flow_law)) / step
     return 1.0 / (c.port_rate * (g_0 + k_v))  # port_rate = gamma r T / V_p
 
 
