@@ -36,8 +36,6 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 
-import numpy as np
-
 from jetpipe_ros.diagnosis.candidates import effect_of
 from jetpipe_ros.diagnosis.data import Prepared
 from jetpipe_ros.diagnosis.fit import Fit
@@ -112,11 +110,13 @@ def check(fitter: Fitter, nominal: ModelParams, cal: Fit, rows: Sequence[Ranked]
                       [f"{g} on every record" for g in ("calibration",
                                                         *(r.fit.name for r in rows))])
     base, pooled = fits[0], fits[1:]
+    recalibrated = per_record(fitter.prepared, {"recalibration": cal,
+                                                "recalibration_pooled": base})
     out = []
     for r, p in zip(rows, pooled):
         (together,) = rank([p], base.holdout, base.holdout_windows, fitter.prepared.dt)
-        scores = per_record(fitter.prepared, {"recalibration": cal, "recalibration_pooled": base,
-                                              "trained": r.fit, "pooled": p})
+        scores = per_record(fitter.prepared, {"trained": r.fit, "pooled": p})
+        scores = {name: {**recalibrated[name], **by} for name, by in scores.items()}
         out.append({
             "candidate": r.fit.name, "effect": effect_of(r.fit.name),
             "train_gap": r.fit.train.gap, "holdout_gap": r.fit.holdout.gap,
@@ -137,12 +137,10 @@ def per_record(prepared: Prepared, fits: dict[str, Fit]) -> dict[str, dict[str, 
     out: dict[str, dict[str, Score]] = {}
     for name, fit_ in fits.items():
         preds = predict_all(fit_.params, prepared, "holdout")
-        for i, rec in enumerate(prepared.records):
-            if preds[i] is None:
+        for i, (rec, pred) in enumerate(zip(prepared.records, preds)):
+            if pred is None:
                 continue
-            masks = [np.ones_like(rec.holdout) if j == i else np.zeros_like(r.holdout)
-                     for j, r in enumerate(prepared.records)]
-            s = score(prepared, preds, "holdout", masks=masks)
+            s = score(prepared, [p if j == i else None for j, p in enumerate(preds)], "holdout")
             if s.count:
                 out.setdefault(rec.name, {})[name] = s
     return out
