@@ -1,6 +1,8 @@
 """What all the records say together (jetpipe_ros.diagnosis.pooled): a candidate the training
 records favour and the held-out split cannot confirm, told from one that only fits them."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy.signal import chirp
@@ -10,7 +12,7 @@ from jetpipe_ros.diagnosis import pooled
 from jetpipe_ros.diagnosis.calibration import CALIBRATION, group
 from jetpipe_ros.diagnosis.data import prepare, swapped
 from jetpipe_ros.diagnosis.fit import fit
-from jetpipe_ros.diagnosis.jobs import IN_PROCESS, Fitter
+from jetpipe_ros.diagnosis.jobs import IN_PROCESS, Fitter, Job
 from jetpipe_ros.diagnosis.verdict import rank
 from jetpipe_ros.model import ModelParams, simulate
 
@@ -111,3 +113,40 @@ def test_a_supply_line_on_records_without_one_is_neither_suspect_nor_favoured(tm
     out = _check(prepared, cal, row)
     assert not out["favoured"] and out["pooled_shrinkage"] < 0.3
     assert pooled.words([out]) == ""
+
+
+def test_the_data_with_every_record_goes_to_the_workers_only_for_a_pooled_job(tmp_path):
+    """A diagnosis that names an effect never runs a pooled job: workers get the training and
+    swapped data at the first call, the data with every record only with the first call that
+    holds a pooled job, once, and that job fits on it (its held-out score is over every
+    record)."""
+    prepared = _prepared(tmp_path / "d", NOMINAL)
+    every = pooled.whole(prepared)
+
+    class Local:
+        parallel = True
+
+        def __init__(self):
+            self.sent = []
+
+        def share(self, data):
+            self.sent.append(data)
+            return list(data)
+
+        def release(self, handles):
+            pass
+
+        def completed(self, fn, items, *shared):
+            for i, item in enumerate(items):
+                yield i, fn(item, *shared)
+
+    workers = Local()
+    jobs = [Job(NOMINAL, ("calibration",), CALIBRATION.start(), 2),
+            Job(NOMINAL, ("calibration",), CALIBRATION.start(), 2)]
+    with Fitter(prepared, swapped(prepared), workers, lambda line: None, every) as fitter:
+        trained, _ = fitter.run(jobs)
+        assert len(workers.sent) == 1 and len(workers.sent[0]) == 2
+        (whole_fit, _) = fitter.run([dataclasses.replace(jobs[0], pooled=True), jobs[1]])
+        fitter.run([dataclasses.replace(jobs[0], pooled=True)] * 2)
+    assert [len(d) for d in workers.sent] == [2, 1] and workers.sent[1][0] is every
+    assert whole_fit.holdout.count["y"] > trained.holdout.count["y"]

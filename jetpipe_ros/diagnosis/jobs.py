@@ -96,7 +96,8 @@ class Fitter:
         self.every = every
         self.workers = workers
         self.progress = progress
-        #: handles of (prepared, other[, every]) on the workers
+        #: handles of (prepared, other[, every]) on the workers, ``every`` from the first call
+        #: that needs it
         self._data: list | None = None
 
     def __enter__(self) -> Fitter:
@@ -107,13 +108,16 @@ class Fitter:
             self.workers.release(self._data)  # frees the workers' copies
             self._data = None
 
-    def _shared(self) -> list:
-        """The handles of the data on every worker (sent once)."""
+    def _shared(self, every: bool) -> list:
+        """The handles of the data on every worker (each sent once): ``prepared`` and
+        ``other``, and with ``every`` (a call that holds a pooled job) that data too, sent only
+        then: most diagnoses name an effect and never run one."""
         if self._data is None:
-            self._data = self.workers.share(
-                [self.prepared, self.other, *([self.every] if self.every is not None else [])])
+            self._data = self.workers.share([self.prepared, self.other])
             self.progress(f"  fitting on {self.workers} (data sent to every worker)")
-        return self._data
+        if every and len(self._data) == 2 and self.every is not None:
+            self._data = self._data + self.workers.share([self.every])
+        return self._data if every else self._data[:2]
 
     def run(self, jobs: Sequence[Job], labels: Sequence[str] | None = None) -> list[Fit]:
         """Run ``jobs``; return their fits in the order of the jobs. ``labels`` name the jobs
@@ -130,7 +134,7 @@ class Fitter:
             for i, job in enumerate(jobs):
                 report(i, i + 1, run_job(job, self.prepared, self.other, self.every))
         else:
-            for done, (i, f) in enumerate(self.workers.completed(run_job, jobs,
-                                                                 *self._shared()), 1):
+            shared = self._shared(any(job.pooled for job in jobs))
+            for done, (i, f) in enumerate(self.workers.completed(run_job, jobs, *shared), 1):
                 report(i, done, f)
         return fits  # type: ignore[return-value]
